@@ -1,0 +1,3 @@
+//! The REBOP flow engine. One module per mechanism.
+
+pub mod result;

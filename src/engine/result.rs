@@ -1,0 +1,193 @@
+//! What a run produces, column-wise, before it is written.
+
+/// Marker states (`markers.state`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[repr(u8)]
+pub enum MarkerState {
+    /// Never mobilised: at its lattice origin.
+    InSitu = 0,
+    /// Inside an IMZ (dilated, moving).
+    Moving = 1,
+    /// Left the lowest disk of an IMZ.
+    Drawn = 2,
+}
+
+impl MarkerState {
+    /// Name written to Parquet.
+    pub fn name(self) -> &'static str {
+        match self {
+            MarkerState::InSitu => "in_situ",
+            MarkerState::Moving => "moving",
+            MarkerState::Drawn => "drawn",
+        }
+    }
+}
+
+/// Extraction report rows (drawpoint-major within period order).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Extraction {
+    /// Drawpoint index.
+    pub drawpoint: Vec<u32>,
+    /// Period number.
+    pub period: Vec<i64>,
+    /// Scheduled tonnes.
+    pub scheduled_tonnes: Vec<f64>,
+    /// Mass of markers drawn.
+    pub marker_tonnes: Vec<f64>,
+    /// Correction factor in [0.1, 2] (1 when nothing was drawn).
+    pub correction: Vec<f64>,
+    /// Credited tonnes.
+    pub tonnes: Vec<f64>,
+    /// Shortfall carried to the next period.
+    pub shortfall_tonnes: Vec<f64>,
+    /// Cumulative credited tonnes.
+    pub cum_tonnes: Vec<f64>,
+    /// Markers drawn.
+    pub markers: Vec<i64>,
+    /// Waste share.
+    pub dilution: Vec<f64>,
+    /// Mean origin elevation.
+    pub origin_z: Vec<f64>,
+    /// Height of draw.
+    pub hod: Vec<f64>,
+    /// Mean fragment size.
+    pub frag_size: Vec<f64>,
+    /// Fines share.
+    pub fines_share: Vec<f64>,
+    /// Air gap volume above the drawpoint so far.
+    pub air_gap: Vec<f64>,
+    /// ok | short | idle.
+    pub status: Vec<&'static str>,
+    /// `grades[g][row]`.
+    pub grades: Vec<Vec<f64>>,
+    /// `lithology[l][row]` mass shares.
+    pub lithology: Vec<Vec<f64>>,
+}
+
+/// IMZ geometry rows.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ImzTable {
+    /// Drawpoint index.
+    pub drawpoint: Vec<u32>,
+    /// Period number.
+    pub period: Vec<i64>,
+    /// Disk index.
+    pub disk: Vec<i64>,
+    /// Disk base, m.
+    pub z_base: Vec<f64>,
+    /// Disk top, m.
+    pub z_top: Vec<f64>,
+    /// Radius R_i, m.
+    pub radius: Vec<f64>,
+}
+
+/// Drawn markers (IEZ).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct DrawnTable {
+    /// Marker id.
+    pub marker_id: Vec<i64>,
+    /// Drawpoint index.
+    pub drawpoint: Vec<u32>,
+    /// Period number.
+    pub period: Vec<i64>,
+    /// Origin.
+    pub origin_x: Vec<f64>,
+    /// Origin.
+    pub origin_y: Vec<f64>,
+    /// Origin.
+    pub origin_z: Vec<f64>,
+    /// Mass, t.
+    pub mass: Vec<f64>,
+    /// Block id.
+    pub block_id: Vec<i64>,
+    /// Fragment size when drawn, m.
+    pub frag_size: Vec<f64>,
+}
+
+/// Marker states at the end of one period.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct MarkerSnapshot {
+    /// Period number.
+    pub period: i64,
+    /// Marker id.
+    pub marker_id: Vec<i64>,
+    /// Position.
+    pub x: Vec<f64>,
+    /// Position.
+    pub y: Vec<f64>,
+    /// Position.
+    pub z: Vec<f64>,
+    /// Origin.
+    pub origin_x: Vec<f64>,
+    /// Origin.
+    pub origin_y: Vec<f64>,
+    /// Origin.
+    pub origin_z: Vec<f64>,
+    /// Mass, t.
+    pub mass: Vec<f64>,
+    /// Block id.
+    pub block_id: Vec<i64>,
+    /// State.
+    pub state: Vec<MarkerState>,
+    /// Porosity.
+    pub porosity: Vec<f64>,
+    /// Fragment size, m.
+    pub frag_size: Vec<f64>,
+    /// Accumulated shear strain Γ.
+    pub shear_strain: Vec<f64>,
+    /// Accumulated shear work Γσ_n, kPa.
+    pub shear_work: Vec<f64>,
+    /// Drawpoint index that drew it (u32::MAX if not drawn).
+    pub drawpoint: Vec<u32>,
+    /// Period drawn (-1 if not drawn).
+    pub drawn_period: Vec<i64>,
+}
+
+/// Mass balance of a run.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
+pub struct MassBalance {
+    /// Total scheduled, t.
+    pub scheduled_tonnes: f64,
+    /// Total credited, t.
+    pub credited_tonnes: f64,
+    /// Total marker mass drawn, t.
+    pub marker_tonnes: f64,
+    /// Shortfall left at the end, t.
+    pub final_shortfall_tonnes: f64,
+    /// Markers created (mobilised at least once).
+    pub markers_mobilised: u64,
+    /// Markers drawn.
+    pub markers_drawn: u64,
+    /// Per drawpoint: (scheduled, credited).
+    pub per_drawpoint: Vec<(f64, f64)>,
+}
+
+/// Resolution actually used.
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
+pub struct ResolvedResolution {
+    /// Disk thickness h, m.
+    pub layer_thickness: f64,
+    /// Marker lattice spacing, m.
+    pub marker_spacing: f64,
+    /// Draw increment, t per drawpoint per step.
+    pub draw_increment: f64,
+}
+
+/// Everything a run produces.
+#[derive(Debug, Clone, Default)]
+pub struct RunOutput {
+    /// Extraction report.
+    pub extraction: Extraction,
+    /// IMZ geometry.
+    pub imz: ImzTable,
+    /// Drawn markers.
+    pub drawn: DrawnTable,
+    /// Marker snapshots.
+    pub snapshots: Vec<MarkerSnapshot>,
+    /// Warnings (degraded validity, blocked drawpoints, ...).
+    pub warnings: Vec<String>,
+    /// Mass balance.
+    pub balance: MassBalance,
+    /// Resolution used.
+    pub resolution: ResolvedResolution,
+}

@@ -1,0 +1,80 @@
+//! Drawpoints, periods and the draw schedule.
+
+/// Drawpoints, column-wise.
+#[derive(Debug, Clone, Default)]
+pub struct Drawpoints {
+    /// Unique names.
+    pub name: Vec<String>,
+    /// IMZ axis Easting, m.
+    pub x: Vec<f64>,
+    /// IMZ axis Northing, m.
+    pub y: Vec<f64>,
+    /// IMZ base elevation, m.
+    pub z: Vec<f64>,
+    /// Opening width (diameter of the lowest IMZ disk), m.
+    pub width: Vec<f64>,
+    /// Reporting zone ("" when not given).
+    pub zone: Vec<String>,
+}
+
+impl Drawpoints {
+    /// Number of drawpoints.
+    pub fn len(&self) -> usize {
+        self.name.len()
+    }
+    /// True when empty.
+    pub fn is_empty(&self) -> bool {
+        self.name.is_empty()
+    }
+    /// Index of a drawpoint by name.
+    pub fn find(&self, name: &str) -> Option<usize> {
+        self.name.iter().position(|n| n == name)
+    }
+}
+
+/// Periods, in order.
+#[derive(Debug, Clone, Default)]
+pub struct Periods {
+    /// Period numbers, strictly increasing.
+    pub id: Vec<i64>,
+    /// Names.
+    pub name: Vec<String>,
+    /// Lengths, days.
+    pub days: Vec<f64>,
+}
+
+impl Periods {
+    /// Number of periods.
+    pub fn len(&self) -> usize {
+        self.id.len()
+    }
+    /// True when empty.
+    pub fn is_empty(&self) -> bool {
+        self.id.is_empty()
+    }
+}
+
+/// Dense schedule: `tonnes[p * n_drawpoints + d]`.
+#[derive(Debug, Clone, Default)]
+pub struct Schedule {
+    /// Number of drawpoints (row stride).
+    pub n_drawpoints: usize,
+    /// Tonnes per period and drawpoint.
+    pub tonnes: Vec<f64>,
+}
+
+impl Schedule {
+    /// Tonnes for period index `p` and drawpoint `d`.
+    #[inline]
+    pub fn get(&self, p: usize, d: usize) -> f64 {
+        self.tonnes[p * self.n_drawpoints + d]
+    }
+    /// The row of period index `p`.
+    pub fn period(&self, p: usize) -> &[f64] {
+        &self.tonnes[p * self.n_drawpoints..(p + 1) * self.n_drawpoints]
+    }
+    /// Total scheduled tonnes of drawpoint `d`.
+    pub fn total(&self, d: usize) -> f64 {
+        self.tonnes.iter().skip(d).step_by(self.n_drawpoints.max(1)).sum()
+    }
+}

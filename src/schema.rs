@@ -1,0 +1,399 @@
+//! Table contracts: one [`TableSpec`] per input and output table.
+//!
+//! These specs are the single source of truth. `schemas/*.json` is generated from them
+//! (`caveflow schema --write schemas/`), a test checks that the committed files match, the
+//! readers validate against them, and the Parquet writers attach the same `unit` and
+//! `description` metadata to every field.
+
+use std::collections::HashMap;
+use std::sync::Arc;
+
+use arrow::datatypes::{DataType, Field, Schema};
+
+/// Logical column type of a field.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Kind {
+    /// 64-bit float.
+    F64,
+    /// 64-bit signed integer.
+    I64,
+    /// 32-bit unsigned integer.
+    U32,
+    /// UTF-8 text.
+    Str,
+}
+
+impl Kind {
+    /// The Arrow type written for this kind.
+    pub fn arrow(self) -> DataType {
+        match self {
+            Kind::F64 => DataType::Float64,
+            Kind::I64 => DataType::Int64,
+            Kind::U32 => DataType::UInt32,
+            Kind::Str => DataType::Utf8,
+        }
+    }
+    /// Name used in the JSON schemas and error messages.
+    pub fn name(self) -> &'static str {
+        match self {
+            Kind::F64 => "Float64",
+            Kind::I64 => "Int64",
+            Kind::U32 => "UInt32",
+            Kind::Str => "Utf8",
+        }
+    }
+}
+
+/// One column of a table.
+#[derive(Debug, Clone, Copy)]
+pub struct FieldSpec {
+    /// Canonical snake_case name.
+    pub name: &'static str,
+    /// Column type.
+    pub kind: Kind,
+    /// SI unit, or "-" for dimensionless / identifiers.
+    pub unit: &'static str,
+    /// What the column means.
+    pub description: &'static str,
+    /// Whether a reader must find it.
+    pub required: bool,
+    /// Other accepted header names (MassFlow names first), matched case-insensitively.
+    pub aliases: &'static [&'static str],
+}
+
+/// Columns beyond the fixed ones (grades, lithology shares).
+#[derive(Debug, Clone, Copy)]
+pub struct ExtraColumns {
+    /// How extra column names are formed.
+    pub pattern: &'static str,
+    /// Their type.
+    pub kind: Kind,
+    /// Their unit.
+    pub unit: &'static str,
+    /// What they mean.
+    pub description: &'static str,
+}
+
+/// A table contract.
+#[derive(Debug, Clone, Copy)]
+pub struct TableSpec {
+    /// Table name as used by `caveflow schema <table>`.
+    pub name: &'static str,
+    /// What one row is.
+    pub description: &'static str,
+    /// The fixed fields, in output order.
+    pub fields: &'static [FieldSpec],
+    /// Variable columns, if the table has them.
+    pub extra: Option<ExtraColumns>,
+}
+
+const fn f(
+    name: &'static str,
+    kind: Kind,
+    unit: &'static str,
+    description: &'static str,
+    required: bool,
+    aliases: &'static [&'static str],
+) -> FieldSpec {
+    FieldSpec { name, kind, unit, description, required, aliases }
+}
+
+use Kind::*;
+
+/// Block model: regular, axis-aligned blocks of one size (which may differ per axis).
+pub const BLOCK_MODEL: TableSpec = TableSpec {
+    name: "block_model",
+    description: "One row per block of a regular, axis-aligned block model. Blocks absent from the table are outside the cave.",
+    fields: &[
+        f("x", F64, "m", "Block centre Easting", true, &["Easting", "XC", "X"]),
+        f("y", F64, "m", "Block centre Northing", true, &["Northing", "YC", "Y"]),
+        f("z", F64, "m", "Block centre Elevation", true, &["Elevation", "ZC", "Z"]),
+        f("block_id", I64, "-", "Unique block identifier", true, &["BlockID", "id"]),
+        f("cave_period", I64, "-", "First period in which the block is caved and free to flow (0 = caved before the first period; larger than the schedule = never)", false, &["CavePeriod"]),
+        f("solids_density", F64, "t/m3", "Density of the intact rock solids, rho_s", true, &["SolidsDen", "density"]),
+        f("porosity", F64, "-", "In-situ (stagnant caved) porosity n0, a fraction in [0,1)", true, &["InSituPor", "n0"]),
+        f("max_porosity", F64, "-", "Dilated porosity n1 inside IMZs (MassFlow MaxPor), a fraction in [n0,1)", true, &["MaxPor", "n1"]),
+        f("friction_angle", F64, "deg", "Friction angle phi of the caved material, in (0,90)", true, &["FricAng", "phi"]),
+        f("frag_size", F64, "m", "Mean primary fragment diameter d (used when no Weibull parameters are given)", false, &["d50", "dbar"]),
+        f("frag_shape", F64, "-", "Weibull shape alpha of primary fragment size (MassFlow PriFragA); s = beta (-ln(1-u))^(1/alpha)", false, &["PriFragA"]),
+        f("frag_scale", F64, "m", "Weibull scale beta of primary fragment size (MassFlow PriFragB)", false, &["PriFragB"]),
+        f("tensile_strength", F64, "kPa", "Fragment tensile strength sigma_t (default 0.1 x UCS)", false, &["TenStr"]),
+        f("tensile_shape", F64, "-", "Weibull shape of tensile strength (MassFlow TenStrA)", false, &["TenStrA"]),
+        f("tensile_scale", F64, "kPa", "Weibull scale of tensile strength (MassFlow TenStrB)", false, &["TenStrB"]),
+        f("ucs", F64, "kPa", "Uniaxial compressive strength of the intact rock", false, &["UCS"]),
+        f("perc_k1", F64, "-", "Percolation coefficient k1 (default 11)", false, &["PercK1"]),
+        f("perc_k2", F64, "-", "Percolation coefficient k2 (default 4.5)", false, &["PercK2"]),
+        f("perc_vmr", F64, "m", "Variance-to-mean ratio of the percolation distance (default 0.5)", false, &["PercVMR"]),
+        f("lithology", Str, "-", "Lithology code", false, &["Lith", "Rocktype", "Lithology"]),
+    ],
+    extra: Some(ExtraColumns {
+        pattern: "<grade name>",
+        kind: F64,
+        unit: "%",
+        description: "Any other numeric column is a grade, in % by mass",
+    }),
+};
+
+/// Drawpoints.
+pub const DRAWPOINTS: TableSpec = TableSpec {
+    name: "drawpoints",
+    description: "One row per drawpoint: the point of extraction at the base of a drawbell.",
+    fields: &[
+        f("name", Str, "-", "Unique drawpoint name", true, &["DPName", "drawpoint"]),
+        f("x", F64, "m", "Drawpoint Easting (IMZ axis)", true, &["X", "Easting"]),
+        f("y", F64, "m", "Drawpoint Northing (IMZ axis)", true, &["Y", "Northing"]),
+        f("z", F64, "m", "Drawpoint elevation: base of the IMZ", true, &["Z", "Elevation"]),
+        f("drawbell", Str, "-", "Drawbell identifier (joins drawbells.name)", false, &["DBID"]),
+        f("bell_type", Str, "-", "Drawbell type", false, &["DBType"]),
+        f("width", F64, "m", "Opening width: the diameter of the lowest IMZ disk (default: the drawbell's width, else the scenario default)", false, &["DDWidth"]),
+        f("zone", Str, "-", "Reporting zone (e.g. lithology domain) used by reconcile and calibrate", false, &["Zone", "Domain"]),
+    ],
+    extra: None,
+};
+
+/// Drawbells (MassFlow's drawbell file).
+pub const DRAWBELLS: TableSpec = TableSpec {
+    name: "drawbells",
+    description: "One row per drawbell type or drawbell.",
+    fields: &[
+        f("name", Str, "-", "Drawbell name (joins drawpoints.drawbell or drawpoints.bell_type)", true, &["BellName"]),
+        f("width", F64, "m", "Draw drift width: opening width at the drawpoint", true, &["DDWidth"]),
+        f("height", F64, "m", "Draw drift height", false, &["DDHeight"]),
+    ],
+    extra: None,
+};
+
+/// Periods.
+pub const PERIODS: TableSpec = TableSpec {
+    name: "periods",
+    description: "One row per schedule period, in order.",
+    fields: &[
+        f("period", I64, "-", "Period number, strictly increasing (cave_period refers to it)", true, &["Period", "id"]),
+        f("name", Str, "-", "Period name (e.g. Sept-08)", false, &["Name"]),
+        f("days", F64, "d", "Period length", true, &["Days"]),
+    ],
+    extra: None,
+};
+
+/// Draw schedule, long form.
+pub const SCHEDULE: TableSpec = TableSpec {
+    name: "schedule",
+    description: "Long-form draw schedule: tonnes to draw from a drawpoint in a period. The MassFlow wide form (row per drawpoint, column per period) is also read.",
+    fields: &[
+        f("period", I64, "-", "Period number (periods.period)", true, &["Period"]),
+        f("drawpoint", Str, "-", "Drawpoint name (drawpoints.name)", true, &["DPName", "name"]),
+        f("tonnes", F64, "t", "Tonnes scheduled", true, &["Tonnes", "mass"]),
+    ],
+    extra: None,
+};
+
+/// Production records for back-analysis.
+pub const PRODUCTION: TableSpec = TableSpec {
+    name: "production",
+    description: "Sampled production per drawpoint and period, for reconcile and calibrate.",
+    fields: &[
+        f("drawpoint", Str, "-", "Drawpoint name", true, &["DPName"]),
+        f("period", I64, "-", "Period number (or give date)", false, &["Period"]),
+        f("date", Str, "-", "Sample date, ISO 8601 (used when period is absent)", false, &["Date"]),
+        f("tonnes", F64, "t", "Tonnes produced", true, &["Tonnes"]),
+        f("frag_size", F64, "m", "Sampled mean fragment size", false, &[]),
+    ],
+    extra: Some(ExtraColumns {
+        pattern: "<grade name>",
+        kind: F64,
+        unit: "%",
+        description: "Sampled grade per grade column of the block model, in % by mass",
+    }),
+};
+
+/// Extraction report.
+pub const EXTRACTION: TableSpec = TableSpec {
+    name: "extraction",
+    description: "What each drawpoint delivered in each period.",
+    fields: &[
+        f("drawpoint", Str, "-", "Drawpoint name", true, &[]),
+        f("period", I64, "-", "Period number", true, &[]),
+        f("scheduled_tonnes", F64, "t", "Tonnes asked for by the schedule in this period", true, &[]),
+        f("marker_tonnes", F64, "t", "Mass of the markers drawn in this period", true, &[]),
+        f("correction", F64, "-", "Mass correction factor applied to the drawn markers, bounded to [0.1, 2]", true, &[]),
+        f("tonnes", F64, "t", "Credited tonnes = correction x marker_tonnes", true, &[]),
+        f("shortfall_tonnes", F64, "t", "Scheduled tonnes (plus earlier shortfall) not credited in this period, carried to the next", true, &[]),
+        f("cum_tonnes", F64, "t", "Cumulative credited tonnes", true, &[]),
+        f("markers", I64, "-", "Number of markers drawn in this period", true, &[]),
+        f("dilution", F64, "-", "Mass share of waste (per the scenario's waste rule) in the drawn material", true, &[]),
+        f("origin_z", F64, "m", "Mass-weighted mean origin elevation of the drawn material", true, &[]),
+        f("hod", F64, "m", "Height of draw: cumulative tonnes / (column footprint x in-situ bulk density)", true, &[]),
+        f("frag_size", F64, "m", "Mass-weighted mean fragment size of the drawn material", true, &[]),
+        f("fines_share", F64, "-", "Mass share of drawn material finer than the fines cut-off", true, &[]),
+        f("air_gap", F64, "m3", "Void that reached unflowable ground above this drawpoint's IMZ so far (air gap)", true, &[]),
+        f("status", Str, "-", "ok | short (could not deliver the schedule) | idle", true, &[]),
+    ],
+    extra: Some(ExtraColumns {
+        pattern: "<grade name> | lith_<lithology>",
+        kind: F64,
+        unit: "% | -",
+        description: "Mass-weighted grade of each input grade column (%), then the mass share of each lithology (-)",
+    }),
+};
+
+/// IMZ geometry.
+pub const IMZ: TableSpec = TableSpec {
+    name: "imz",
+    description: "Disk radii of each drawpoint's IMZ at the end of a period.",
+    fields: &[
+        f("drawpoint", Str, "-", "Drawpoint name", true, &[]),
+        f("period", I64, "-", "Period number", true, &[]),
+        f("disk", I64, "-", "Disk index, 0 at the drawpoint", true, &[]),
+        f("z_base", F64, "m", "Disk base elevation", true, &[]),
+        f("z_top", F64, "m", "Disk top elevation", true, &[]),
+        f("radius", F64, "m", "Disk radius R_i", true, &[]),
+    ],
+    extra: None,
+};
+
+/// Drawn markers (the IEZ).
+pub const DRAWN: TableSpec = TableSpec {
+    name: "drawn",
+    description: "One row per drawn marker: where it came from and who drew it (the IEZ).",
+    fields: &[
+        f("marker_id", I64, "-", "Marker identifier (lattice site index)", true, &[]),
+        f("drawpoint", Str, "-", "Drawpoint that drew it", true, &[]),
+        f("period", I64, "-", "Period in which it was drawn", true, &[]),
+        f("origin_x", F64, "m", "Origin Easting", true, &[]),
+        f("origin_y", F64, "m", "Origin Northing", true, &[]),
+        f("origin_z", F64, "m", "Origin elevation", true, &[]),
+        f("mass", F64, "t", "Marker mass", true, &[]),
+        f("block_id", I64, "-", "Block of origin", true, &[]),
+        f("frag_size", F64, "m", "Fragment size when drawn", true, &[]),
+    ],
+    extra: None,
+};
+
+/// Marker states at chosen periods.
+pub const MARKERS: TableSpec = TableSpec {
+    name: "markers",
+    description: "Every mobilised or drawn marker at the end of a chosen period (markers never mobilised sit at their lattice origin and are not written).",
+    fields: &[
+        f("marker_id", I64, "-", "Marker identifier (lattice site index)", true, &[]),
+        f("period", I64, "-", "Period at whose end the state was taken", true, &[]),
+        f("x", F64, "m", "Current Easting", true, &[]),
+        f("y", F64, "m", "Current Northing", true, &[]),
+        f("z", F64, "m", "Current elevation", true, &[]),
+        f("origin_x", F64, "m", "Origin Easting", true, &[]),
+        f("origin_y", F64, "m", "Origin Northing", true, &[]),
+        f("origin_z", F64, "m", "Origin elevation", true, &[]),
+        f("mass", F64, "t", "Marker mass", true, &[]),
+        f("block_id", I64, "-", "Block of origin", true, &[]),
+        f("state", Str, "-", "in_situ | moving | drawn", true, &[]),
+        f("porosity", F64, "-", "Current porosity of the material the marker stands for", true, &[]),
+        f("frag_size", F64, "m", "Current representative fragment size", true, &[]),
+        f("shear_strain", F64, "-", "Accumulated shear strain Gamma", true, &[]),
+        f("shear_work", F64, "kPa", "Accumulated shear work Gamma x sigma_n", true, &[]),
+        f("drawpoint", Str, "-", "Drawpoint that drew it (empty if not drawn)", true, &[]),
+        f("drawn_period", I64, "-", "Period in which it was drawn (-1 if not drawn)", true, &[]),
+    ],
+    extra: None,
+};
+
+/// Run manifest (JSON, described with the same field conventions).
+pub const MANIFEST: TableSpec = TableSpec {
+    name: "manifest",
+    description: "manifest.json: what was run, on what, and how the mass balanced.",
+    fields: &[
+        f("caveflow_version", Str, "-", "Crate version", true, &[]),
+        f("inputs", Str, "-", "Input files with their SHA-256", true, &[]),
+        f("scenario", Str, "-", "The resolved scenario (every setting, defaults filled in)", true, &[]),
+        f("seed", I64, "-", "Random seed", true, &[]),
+        f("wall_time_s", F64, "s", "Wall time of the run", true, &[]),
+        f("mass_balance", Str, "-", "Scheduled, credited and shortfall tonnes, overall and per drawpoint", true, &[]),
+        f("warnings", Str, "-", "Warnings raised during the run", true, &[]),
+    ],
+    extra: None,
+};
+
+/// Every table, for `caveflow schema`.
+pub const ALL: &[TableSpec] = &[
+    BLOCK_MODEL, DRAWPOINTS, DRAWBELLS, PERIODS, SCHEDULE, PRODUCTION, EXTRACTION, IMZ, DRAWN, MARKERS,
+    MANIFEST,
+];
+
+/// Look a table up by name.
+pub fn table(name: &str) -> Option<&'static TableSpec> {
+    ALL.iter().find(|t| t.name == name)
+}
+
+impl TableSpec {
+    /// The fixed field of this name.
+    pub fn field(&self, name: &str) -> Option<&'static FieldSpec> {
+        self.fields.iter().find(|f| f.name == name)
+    }
+
+    /// Arrow schema with unit/description metadata; `extra` names the variable columns
+    /// (all of the extra kind), appended after the fixed fields in `order` if given.
+    pub fn arrow_schema(&self, fixed: &[&str], extra: &[String]) -> Arc<Schema> {
+        let mut fields: Vec<Field> = Vec::new();
+        for name in fixed {
+            let spec = self.field(name).unwrap_or_else(|| panic!("{} has no field {name}", self.name));
+            fields.push(arrow_field(spec.name, spec.kind, spec.unit, spec.description, !spec.required));
+        }
+        if let Some(x) = &self.extra {
+            for name in extra {
+                let (unit, desc) = if name.starts_with("lith_") {
+                    ("-", "Mass share of this lithology")
+                } else {
+                    (x.unit.split(" | ").next().unwrap_or(x.unit), x.description)
+                };
+                fields.push(arrow_field(name, x.kind, unit, desc, true));
+            }
+        }
+        Arc::new(Schema::new(fields).with_metadata(HashMap::from([(
+            "description".to_string(),
+            self.description.to_string(),
+        )])))
+    }
+
+    /// Names of all fixed fields.
+    pub fn field_names(&self) -> Vec<&'static str> {
+        self.fields.iter().map(|f| f.name).collect()
+    }
+
+    /// The JSON form written to `schemas/<name>.json`.
+    pub fn to_json(&self) -> serde_json::Value {
+        use serde_json::json;
+        let fields: Vec<_> = self
+            .fields
+            .iter()
+            .map(|f| {
+                json!({
+                    "name": f.name,
+                    "type": f.kind.name(),
+                    "nullable": !f.required,
+                    "required": f.required,
+                    "metadata": {"unit": f.unit, "description": f.description},
+                    "aliases": f.aliases,
+                })
+            })
+            .collect();
+        let mut v = json!({
+            "table": self.name,
+            "description": self.description,
+            "fields": fields,
+        });
+        if let Some(x) = &self.extra {
+            v["extra_columns"] = json!({
+                "pattern": x.pattern,
+                "type": x.kind.name(),
+                "metadata": {"unit": x.unit, "description": x.description},
+            });
+        }
+        v
+    }
+}
+
+/// One Arrow field with `unit` and `description` metadata.
+pub fn arrow_field(name: &str, kind: Kind, unit: &str, description: &str, nullable: bool) -> Field {
+    Field::new(name, kind.arrow(), nullable).with_metadata(HashMap::from([
+        ("unit".to_string(), unit.to_string()),
+        ("description".to_string(), description.to_string()),
+    ]))
+}

@@ -1,0 +1,6 @@
+//! The one integration-test binary (ripgrep/polars style): one module per layer.
+
+mod cli;
+mod engine;
+mod io;
+mod output;
