@@ -2,6 +2,7 @@
 //! and the scenario. Everything here is validated; the engine trusts it.
 
 pub mod block_model;
+pub mod demo;
 pub mod layout;
 pub mod scenario;
 
