@@ -1,1 +1,74 @@
-//! output layer.
+//! The output layer: everything a run or a command writes to disk.
+//!
+//! - [`parquet`](self::parquet): atomic file writing ([`AtomicFile`], [`write_atomic`]) and the one Parquet
+//!   writer ([`write_parquet`]) that every table goes through.
+//! - [`run`]: a run directory — extraction report, IMZ geometry, drawn markers (IEZ),
+//!   partitioned marker states and the manifest ([`write_run`]).
+//! - [`manifest`]: the run manifest (`manifest.json`).
+//! - [`inputs`]: a [`Scene`](crate::model::Scene) written back as input tables and a scenario
+//!   file (used by `caveflow demo`).
+//! - `charts`: PNG and SVG charts.
+//!
+//! # Why every file is written atomically
+//!
+//! A run directory is read by BI tools and by `reconcile` while other runs are going. A
+//! crash or a full disk in the middle of a write must leave either the previous file or no
+//! file, never a truncated Parquet file whose footer is missing. Every writer here writes a
+//! temporary file next to the target, syncs it, and renames it over the target.
+
+use std::path::PathBuf;
+
+pub mod charts;
+pub mod inputs;
+pub mod manifest;
+pub mod parquet;
+pub mod run;
+
+pub use self::manifest::{InputFile, Manifest};
+pub use self::parquet::{write_atomic, write_parquet, AtomicFile};
+pub use self::run::write_run;
+
+/// A failure to write an output file. Every variant names the file.
+#[derive(Debug, thiserror::Error)]
+pub enum OutputError {
+    /// Creating, writing, syncing or renaming the file failed.
+    #[error("{}: {source}", path.display())]
+    Io {
+        /// The file (or directory).
+        path: PathBuf,
+        /// Cause.
+        source: std::io::Error,
+    },
+    /// The columns do not fit the table's schema (count, length or type).
+    #[error("{}: cannot assemble the table: {source}", path.display())]
+    Arrow {
+        /// The file.
+        path: PathBuf,
+        /// Cause.
+        source: arrow::error::ArrowError,
+    },
+    /// The Parquet encoder failed.
+    #[error("{}: cannot write Parquet: {source}", path.display())]
+    Parquet {
+        /// The file.
+        path: PathBuf,
+        /// Cause.
+        source: ::parquet::errors::ParquetError,
+    },
+    /// The CSV encoder failed.
+    #[error("{}: cannot write CSV: {source}", path.display())]
+    Csv {
+        /// The file.
+        path: PathBuf,
+        /// Cause.
+        source: csv::Error,
+    },
+    /// A value could not be serialised to JSON or TOML.
+    #[error("{}: cannot encode: {message}", path.display())]
+    Encode {
+        /// The file.
+        path: PathBuf,
+        /// What went wrong.
+        message: String,
+    },
+}

@@ -1,0 +1,196 @@
+//! Atomic file writing and the Parquet writer every table goes through.
+//!
+//! [`AtomicFile`] writes to `<path>.tmp-<pid>-<n>` in the target's own directory (so the
+//! rename never crosses a file system), syncs the data, renames it over the target and
+//! syncs the directory. Until the rename the target is untouched; if the writer is dropped
+//! before [`AtomicFile::commit`] (an error, a panic) the temporary file is removed. A hard
+//! crash (power loss, `kill -9`) can leave a `*.tmp-*` file beside the target, but never a
+//! torn file under the target's name.
+
+use std::fs::{self, File, OpenOptions};
+use std::io::{self, BufWriter, Write};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Arc;
+
+use ::parquet::arrow::ArrowWriter;
+use ::parquet::basic::{Compression, ZstdLevel};
+use ::parquet::file::properties::{EnabledStatistics, WriterProperties};
+use arrow::array::ArrayRef;
+use arrow::datatypes::Schema;
+use arrow::record_batch::RecordBatch;
+
+use super::OutputError;
+
+/// Rows per Parquet row group: large enough for good compression and few footers, small
+/// enough that a reader can skip most of a mine-scale table using the statistics.
+pub const MAX_ROW_GROUP_ROWS: usize = 1 << 20;
+
+/// zstd level: 3 is zstd's own default, a good balance of speed and size for float columns.
+const ZSTD_LEVEL: i32 = 3;
+
+/// Distinguishes temporary files of several writers in one process.
+static TMP_COUNTER: AtomicU64 = AtomicU64::new(0);
+
+fn io_err(path: &Path) -> impl FnOnce(io::Error) -> OutputError + '_ {
+    move |source| OutputError::Io {
+        path: path.to_path_buf(),
+        source,
+    }
+}
+
+/// A file that appears under its final name only when [`commit`](Self::commit) succeeds.
+///
+/// Write to it through [`Write`] (it is buffered). Dropping it without committing removes
+/// the temporary file and leaves any previous file at the target untouched.
+#[derive(Debug)]
+pub struct AtomicFile {
+    path: PathBuf,
+    tmp: PathBuf,
+    out: Option<BufWriter<File>>,
+}
+
+impl AtomicFile {
+    /// Starts writing `path`: creates the temporary file beside it. The parent directory
+    /// must exist.
+    pub fn create(path: &Path) -> Result<AtomicFile, OutputError> {
+        let name = path.file_name().ok_or_else(|| OutputError::Io {
+            path: path.to_path_buf(),
+            source: io::Error::new(io::ErrorKind::InvalidInput, "not a file path"),
+        })?;
+        let mut tmp_name = name.to_os_string();
+        tmp_name.push(format!(
+            ".tmp-{}-{}",
+            std::process::id(),
+            TMP_COUNTER.fetch_add(1, Ordering::Relaxed)
+        ));
+        let tmp = path.with_file_name(tmp_name);
+        let file = OpenOptions::new()
+            .write(true)
+            .create_new(true)
+            .open(&tmp)
+            .map_err(io_err(&tmp))?;
+        Ok(AtomicFile {
+            path: path.to_path_buf(),
+            tmp,
+            out: Some(BufWriter::new(file)),
+        })
+    }
+
+    /// The final path.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// The temporary file being written.
+    pub fn tmp_path(&self) -> &Path {
+        &self.tmp
+    }
+
+    /// Flushes and syncs the data, renames the temporary file over the target, and syncs the
+    /// directory so the rename itself survives a crash.
+    pub fn commit(mut self) -> Result<(), OutputError> {
+        let out = self.out.take().expect("AtomicFile written after commit");
+        let file = out.into_inner().map_err(|e| OutputError::Io {
+            path: self.tmp.clone(),
+            source: e.into_error(),
+        })?;
+        file.sync_all().map_err(io_err(&self.tmp))?;
+        drop(file);
+        fs::rename(&self.tmp, &self.path).map_err(io_err(&self.path))?;
+        // Renamed: nothing left for Drop to clean up.
+        self.tmp = PathBuf::new();
+        sync_dir(&self.path)
+    }
+}
+
+impl Write for AtomicFile {
+    fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
+        self.out
+            .as_mut()
+            .expect("AtomicFile written after commit")
+            .write(buf)
+    }
+
+    fn flush(&mut self) -> io::Result<()> {
+        self.out
+            .as_mut()
+            .expect("AtomicFile written after commit")
+            .flush()
+    }
+}
+
+impl Drop for AtomicFile {
+    fn drop(&mut self) {
+        // Close before removing, then remove whatever was not renamed. Errors are moot here:
+        // the write already failed and its error is what the caller sees.
+        drop(self.out.take());
+        if !self.tmp.as_os_str().is_empty() {
+            let _ = fs::remove_file(&self.tmp);
+        }
+    }
+}
+
+/// Syncs the directory holding `path`, making a completed rename durable.
+#[cfg(unix)]
+fn sync_dir(path: &Path) -> Result<(), OutputError> {
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    File::open(dir)
+        .and_then(|d| d.sync_all())
+        .map_err(io_err(dir))
+}
+
+/// Directories cannot be opened for syncing on this platform; the rename is still atomic.
+#[cfg(not(unix))]
+fn sync_dir(_path: &Path) -> Result<(), OutputError> {
+    Ok(())
+}
+
+/// Writes `bytes` to `path` atomically (text, JSON, TOML).
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), OutputError> {
+    let mut file = AtomicFile::create(path)?;
+    file.write_all(bytes).map_err(io_err(path))?;
+    file.commit()
+}
+
+/// Writer settings shared by every Parquet file: zstd, page-level statistics (min/max per
+/// page and per row group, so readers can prune), row groups of at most
+/// [`MAX_ROW_GROUP_ROWS`] rows.
+fn properties() -> WriterProperties {
+    WriterProperties::builder()
+        .set_compression(Compression::ZSTD(
+            ZstdLevel::try_new(ZSTD_LEVEL).expect("valid zstd level"),
+        ))
+        .set_statistics_enabled(EnabledStatistics::Page)
+        .set_max_row_group_row_count(Some(MAX_ROW_GROUP_ROWS))
+        .build()
+}
+
+/// Writes one table atomically as Parquet.
+///
+/// `columns` are moved into a [`RecordBatch`] (build them from owned `Vec`s, e.g.
+/// `Float64Array::from(vec)`, and nothing is copied). The schema, with each field's `unit`
+/// and `description` metadata, is stored in the file so readers get it back unchanged.
+pub fn write_parquet(
+    path: &Path,
+    schema: Arc<Schema>,
+    columns: Vec<ArrayRef>,
+) -> Result<(), OutputError> {
+    let batch = RecordBatch::try_new(schema, columns).map_err(|source| OutputError::Arrow {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let parquet_err = |source| OutputError::Parquet {
+        path: path.to_path_buf(),
+        source,
+    };
+    let mut file = AtomicFile::create(path)?;
+    let mut writer =
+        ArrowWriter::try_new(&mut file, batch.schema(), Some(properties())).map_err(parquet_err)?;
+    writer.write(&batch).map_err(parquet_err)?;
+    writer.close().map_err(parquet_err)?;
+    file.commit()
+}

@@ -1,0 +1,194 @@
+//! A run directory: the tables of one run and its manifest.
+//!
+//! ```text
+//! <dir>/extraction.parquet
+//! <dir>/imz.parquet
+//! <dir>/drawn.parquet
+//! <dir>/markers/period=<N>/part-0.parquet   (Hive-partitioned; `period` is also a column)
+//! <dir>/manifest.json                       (written last)
+//! ```
+//!
+//! The writers take the run's tables by value: their `Vec` columns move into Arrow arrays
+//! without a copy, which matters at mine scale (millions of rows). Draw anything that needs
+//! the in-memory tables (charts) before writing.
+
+use std::fs;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use arrow::array::{ArrayRef, Float64Array, Int64Array, StringArray};
+
+use super::{write_parquet, Manifest, OutputError};
+use crate::engine::result::{DrawnTable, Extraction, ImzTable, MarkerSnapshot, RunOutput};
+use crate::model::Scene;
+use crate::schema::{TableSpec, DRAWN, EXTRACTION, IMZ, MARKERS};
+
+fn f64s(v: Vec<f64>) -> ArrayRef {
+    Arc::new(Float64Array::from(v))
+}
+
+fn i64s(v: Vec<i64>) -> ArrayRef {
+    Arc::new(Int64Array::from(v))
+}
+
+/// Drawpoint names for drawpoint indices; [`u32::MAX`] (not drawn) becomes "".
+fn names(index: &[u32], names: &[String]) -> ArrayRef {
+    Arc::new(StringArray::from_iter_values(
+        index
+            .iter()
+            .map(|&d| names.get(d as usize).map_or("", String::as_str)),
+    ))
+}
+
+/// Writes named columns as one table: the schema is `spec`'s fields under these names (in
+/// this order) with `extra` names for the variable columns that follow them.
+fn write_table(
+    path: &Path,
+    spec: &TableSpec,
+    fixed: Vec<(&str, ArrayRef)>,
+    extra: Vec<(String, ArrayRef)>,
+) -> Result<(), OutputError> {
+    let (fixed_names, mut columns): (Vec<&str>, Vec<ArrayRef>) = fixed.into_iter().unzip();
+    let (extra_names, extra_columns): (Vec<String>, Vec<ArrayRef>) = extra.into_iter().unzip();
+    columns.extend(extra_columns);
+    write_parquet(path, spec.arrow_schema(&fixed_names, &extra_names), columns)
+}
+
+/// Writes the extraction report: the fixed fields in spec order, then one column per grade
+/// under the grade's own name, then `lith_<name>` (mass share) per lithology.
+pub fn write_extraction(path: &Path, scene: &Scene, t: Extraction) -> Result<(), OutputError> {
+    let blocks = &scene.blocks;
+    let status = Arc::new(StringArray::from(t.status)) as ArrayRef;
+    let fixed = vec![
+        ("drawpoint", names(&t.drawpoint, &scene.drawpoints.name)),
+        ("period", i64s(t.period)),
+        ("scheduled_tonnes", f64s(t.scheduled_tonnes)),
+        ("marker_tonnes", f64s(t.marker_tonnes)),
+        ("correction", f64s(t.correction)),
+        ("tonnes", f64s(t.tonnes)),
+        ("shortfall_tonnes", f64s(t.shortfall_tonnes)),
+        ("cum_tonnes", f64s(t.cum_tonnes)),
+        ("markers", i64s(t.markers)),
+        ("dilution", f64s(t.dilution)),
+        ("origin_z", f64s(t.origin_z)),
+        ("hod", f64s(t.hod)),
+        ("frag_size", f64s(t.frag_size)),
+        ("fines_share", f64s(t.fines_share)),
+        ("air_gap", f64s(t.air_gap)),
+        ("status", status),
+    ];
+    let grades = blocks
+        .grade_names
+        .iter()
+        .cloned()
+        .zip(t.grades.into_iter().map(f64s));
+    let liths = blocks
+        .lithology_names
+        .iter()
+        .map(|l| format!("lith_{l}"))
+        .zip(t.lithology.into_iter().map(f64s));
+    write_table(path, &EXTRACTION, fixed, grades.chain(liths).collect())
+}
+
+/// Writes the IMZ geometry table.
+pub fn write_imz(path: &Path, scene: &Scene, t: ImzTable) -> Result<(), OutputError> {
+    let fixed = vec![
+        ("drawpoint", names(&t.drawpoint, &scene.drawpoints.name)),
+        ("period", i64s(t.period)),
+        ("disk", i64s(t.disk)),
+        ("z_base", f64s(t.z_base)),
+        ("z_top", f64s(t.z_top)),
+        ("radius", f64s(t.radius)),
+    ];
+    write_table(path, &IMZ, fixed, Vec::new())
+}
+
+/// Writes the drawn markers (the IEZ).
+pub fn write_drawn(path: &Path, scene: &Scene, t: DrawnTable) -> Result<(), OutputError> {
+    let fixed = vec![
+        ("marker_id", i64s(t.marker_id)),
+        ("drawpoint", names(&t.drawpoint, &scene.drawpoints.name)),
+        ("period", i64s(t.period)),
+        ("origin_x", f64s(t.origin_x)),
+        ("origin_y", f64s(t.origin_y)),
+        ("origin_z", f64s(t.origin_z)),
+        ("mass", f64s(t.mass)),
+        ("block_id", i64s(t.block_id)),
+        ("frag_size", f64s(t.frag_size)),
+    ];
+    write_table(path, &DRAWN, fixed, Vec::new())
+}
+
+/// Writes one marker snapshot as `<dir>/period=<N>/part-0.parquet` (Hive partitioning, so
+/// polars, DuckDB and Arrow datasets read `<dir>` as one table). The `period` column is kept
+/// inside the file too, so a single file stands on its own. Returns the file's path.
+pub fn write_markers(dir: &Path, scene: &Scene, t: MarkerSnapshot) -> Result<PathBuf, OutputError> {
+    let part = dir.join(format!("period={}", t.period));
+    fs::create_dir_all(&part).map_err(|source| OutputError::Io {
+        path: part.clone(),
+        source,
+    })?;
+    let path = part.join("part-0.parquet");
+    let rows = t.marker_id.len();
+    let state = Arc::new(StringArray::from_iter_values(
+        t.state.iter().map(|s| s.name()),
+    )) as ArrayRef;
+    let fixed = vec![
+        ("marker_id", i64s(t.marker_id)),
+        ("period", i64s(vec![t.period; rows])),
+        ("x", f64s(t.x)),
+        ("y", f64s(t.y)),
+        ("z", f64s(t.z)),
+        ("origin_x", f64s(t.origin_x)),
+        ("origin_y", f64s(t.origin_y)),
+        ("origin_z", f64s(t.origin_z)),
+        ("mass", f64s(t.mass)),
+        ("block_id", i64s(t.block_id)),
+        ("state", state),
+        ("porosity", f64s(t.porosity)),
+        ("frag_size", f64s(t.frag_size)),
+        ("shear_strain", f64s(t.shear_strain)),
+        ("shear_work", f64s(t.shear_work)),
+        ("drawpoint", names(&t.drawpoint, &scene.drawpoints.name)),
+        ("drawn_period", i64s(t.drawn_period)),
+    ];
+    write_table(&path, &MARKERS, fixed, Vec::new())?;
+    Ok(path)
+}
+
+/// Writes a whole run into `dir` (created if needed) and returns the files written, the
+/// manifest last. Consumes the run so its columns move into Arrow without a copy.
+pub fn write_run(
+    dir: &Path,
+    scene: &Scene,
+    run: RunOutput,
+    manifest: &Manifest,
+) -> Result<Vec<PathBuf>, OutputError> {
+    fs::create_dir_all(dir).map_err(|source| OutputError::Io {
+        path: dir.to_path_buf(),
+        source,
+    })?;
+    let mut written = Vec::new();
+
+    let path = dir.join("extraction.parquet");
+    write_extraction(&path, scene, run.extraction)?;
+    written.push(path);
+
+    let path = dir.join("imz.parquet");
+    write_imz(&path, scene, run.imz)?;
+    written.push(path);
+
+    let path = dir.join("drawn.parquet");
+    write_drawn(&path, scene, run.drawn)?;
+    written.push(path);
+
+    let markers = dir.join("markers");
+    for snapshot in run.snapshots {
+        written.push(write_markers(&markers, scene, snapshot)?);
+    }
+
+    let path = dir.join("manifest.json");
+    manifest.write(&path)?;
+    written.push(path);
+    Ok(written)
+}
