@@ -4,6 +4,7 @@
 pub mod block_model;
 pub mod demo;
 pub mod layout;
+pub mod load;
 pub mod scenario;
 
 pub use block_model::BlockModel;

@@ -1,1 +1,1347 @@
-//! Integration tests: io.
+//! Integration tests: io (table readers, MassFlow formats) and model::load (validation).
+//!
+//! Good files live in `tests/data/io/`. Broken files are written at test time next to a
+//! small, valid scene, one defect at a time, so that each test shows the defect it checks.
+
+use std::fs;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use arrow::array::{
+    ArrayRef, Float32Array, Float64Array, Int32Array, Int64Array, RecordBatch, StringArray,
+};
+use arrow::datatypes::{Field, Schema};
+use caveflow::io::{
+    parse_period_header, read_schedule, read_table, Problem, Problems, ScheduleForm, KEEP_PER_RULE,
+};
+use caveflow::model::load::{load_scene, LoadedScene};
+use caveflow::model::Scenario;
+use caveflow::schema::{BLOCK_MODEL, DRAWBELLS, DRAWPOINTS, PERIODS, SCHEDULE};
+use parquet::arrow::ArrowWriter;
+use sha2::{Digest, Sha256};
+use tempfile::TempDir;
+
+fn data(rel: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/data/io")
+        .join(rel)
+}
+
+fn close(a: f64, b: f64) -> bool {
+    (a - b).abs() <= 1e-9 * b.abs().max(1.0)
+}
+
+/// Asserts that some problem has this file, row, column and rule, and that its Display
+/// names all four. Returns it for further checks on the message.
+fn expect<'a>(
+    ps: &'a Problems,
+    file: &str,
+    row: Option<usize>,
+    column: Option<&str>,
+    rule: &str,
+) -> &'a Problem {
+    let p = ps
+        .0
+        .iter()
+        .find(|p| p.file == file && p.row == row && p.column.as_deref() == column && p.rule == rule)
+        .unwrap_or_else(|| panic!("no {rule} problem at {file} {row:?} {column:?} in:\n{ps}"));
+    let shown = p.to_string();
+    assert!(shown.starts_with(&format!("{file}: ")), "{shown}");
+    assert!(shown.contains(&format!("[{rule}] ")), "{shown}");
+    match row {
+        Some(0) => assert!(shown.contains("header"), "{shown}"),
+        Some(r) => assert!(shown.contains(&format!("row {r}")), "{shown}"),
+        None => assert!(!shown.contains("row "), "{shown}"),
+    }
+    if let Some(c) = column {
+        assert!(shown.contains(&format!("column {c}")), "{shown}");
+    }
+    p
+}
+
+// ---------------------------------------------------------------------------------------
+// A small valid scene, edited one defect at a time.
+
+const BLOCKS: &str = "\
+x,y,z,block_id,solids_density,porosity,max_porosity,friction_angle,frag_size,lithology,cu
+5,5,5,1,2.7,0.3,0.45,38,0.2,ore,1.0
+15,5,5,2,2.7,0.3,0.45,38,0.2,ore,1.1
+5,15,5,3,2.7,0.3,0.45,38,0.2,ore,1.2
+15,15,5,4,2.7,0.3,0.45,38,0.2,ore,1.3
+5,5,15,5,2.5,0.35,0.5,36,0.5,waste,0.1
+15,5,15,6,2.5,0.35,0.5,36,0.5,waste,0.1
+5,15,15,7,2.5,0.35,0.5,36,0.5,waste,0.1
+15,15,15,8,2.5,0.35,0.5,36,0.5,waste,0.1
+";
+const DRAWPOINTS_CSV: &str = "name,x,y,z,width\nDP1,5,5,0,4\nDP2,15,15,0,4\n";
+const PERIODS_CSV: &str = "period,name,days\n1,Jan-09,31\n2,Feb-09,28\n";
+const SCHEDULE_CSV: &str = "period,drawpoint,tonnes\n1,DP1,100\n1,DP2,100\n2,DP1,50\n";
+
+/// The text of each input file of a test scene.
+struct Files {
+    blocks: String,
+    drawpoints: String,
+    drawbells: Option<String>,
+    periods: Option<String>,
+    schedule: String,
+}
+
+impl Default for Files {
+    fn default() -> Files {
+        Files {
+            blocks: BLOCKS.into(),
+            drawpoints: DRAWPOINTS_CSV.into(),
+            drawbells: None,
+            periods: Some(PERIODS_CSV.into()),
+            schedule: SCHEDULE_CSV.into(),
+        }
+    }
+}
+
+/// Sets the cell of data row `row` (1-based) and column `column` of comma-separated text.
+fn set(text: &mut String, row: usize, column: &str, value: &str) {
+    let mut lines: Vec<Vec<String>> = text
+        .lines()
+        .map(|l| l.split(',').map(str::to_string).collect())
+        .collect();
+    let c = lines[0]
+        .iter()
+        .position(|h| h == column)
+        .unwrap_or_else(|| panic!("no column {column}"));
+    lines[row][c] = value.to_string();
+    *text = lines.iter().map(|l| l.join(",") + "\n").collect();
+}
+
+/// Removes a column from comma-separated text.
+fn drop_column(text: &mut String, column: &str) {
+    let c = text
+        .lines()
+        .next()
+        .unwrap()
+        .split(',')
+        .position(|h| h == column)
+        .unwrap();
+    *text = text
+        .lines()
+        .map(|l| {
+            let mut f: Vec<&str> = l.split(',').collect();
+            f.remove(c);
+            f.join(",") + "\n"
+        })
+        .collect();
+}
+
+/// Writes the files into a temporary folder and loads them.
+fn load(files: Files) -> (TempDir, Result<LoadedScene, Problems>) {
+    let dir = TempDir::new().unwrap();
+    let mut sc = Scenario::default();
+    let write = |name: &str, text: &str| {
+        let p = dir.path().join(name);
+        fs::write(&p, text).unwrap();
+        p
+    };
+    sc.inputs.blocks = write("blocks.csv", &files.blocks);
+    sc.inputs.drawpoints = write("drawpoints.csv", &files.drawpoints);
+    sc.inputs.schedule = write("schedule.csv", &files.schedule);
+    sc.inputs.drawbells = files
+        .drawbells
+        .as_deref()
+        .map(|t| write("drawbells.csv", t));
+    sc.inputs.periods = files.periods.as_deref().map(|t| write("periods.csv", t));
+    let r = load_scene(&sc);
+    (dir, r)
+}
+
+/// Loads files that must fail, returning the problems.
+fn problems(files: Files) -> Problems {
+    match load(files).1 {
+        Ok(_) => panic!("the scene loaded but should not have"),
+        Err(p) => p,
+    }
+}
+
+fn edited(edit: impl FnOnce(&mut Files)) -> Problems {
+    let mut f = Files::default();
+    edit(&mut f);
+    problems(f)
+}
+
+/// Reads bytes written to a temp file as a block model.
+fn read_bytes(name: &str, bytes: &[u8]) -> Result<caveflow::io::Table, Problems> {
+    let dir = TempDir::new().unwrap();
+    let p = dir.path().join(name);
+    fs::write(&p, bytes).unwrap();
+    read_table(&p, &BLOCK_MODEL)
+}
+
+// ---------------------------------------------------------------------------------------
+// Good files.
+
+#[test]
+fn valid_scene_loads() {
+    let (dir, r) = load(Files::default());
+    let l = r.unwrap_or_else(|p| panic!("{p}"));
+    let s = &l.scene;
+    assert_eq!(s.blocks.len(), 8);
+    assert_eq!(s.blocks.size, [10.0, 10.0, 10.0]);
+    assert_eq!(s.blocks.origin, [0.0, 0.0, 0.0]);
+    assert_eq!(s.blocks.dims, [2, 2, 2]);
+    assert_eq!(s.blocks.locate([12.0, 3.0, 19.0]), Some(5));
+    assert_eq!(s.blocks.lithology_names, ["ore", "waste"]);
+    assert_eq!(s.blocks.lithology[4], 1);
+    assert_eq!(s.blocks.grade_names, ["cu"]);
+    assert_eq!(s.blocks.grades[0][3], 1.3);
+    assert_eq!(s.blocks.cave_period, vec![0; 8]);
+    assert_eq!(s.blocks.perc_k1[0], 11.0);
+    assert_eq!(s.blocks.perc_k2[0], 4.5);
+    assert_eq!(s.blocks.perc_vmr[0], 0.5);
+    assert!(
+        s.blocks.tensile[0].is_nan(),
+        "no tensile strength and no UCS: NaN"
+    );
+    assert!(s.blocks.frag_shape[0].is_nan());
+    assert_eq!(s.blocks.frag[4], 0.5);
+    assert_eq!(s.drawpoints.name, ["DP1", "DP2"]);
+    assert_eq!(s.periods.id, [1, 2]);
+    assert_eq!(s.periods.days, [31.0, 28.0]);
+    assert_eq!(s.schedule.period(0), [100.0, 100.0]);
+    assert_eq!(s.schedule.period(1), [50.0, 0.0]);
+    assert!(l.warnings.is_empty(), "{:?}", l.warnings);
+    let roles: Vec<&str> = l.inputs.iter().map(|i| i.role.as_str()).collect();
+    assert_eq!(roles, ["blocks", "drawpoints", "periods", "schedule"]);
+    let blocks = &l.inputs[0];
+    assert_eq!(blocks.rows, 8);
+    let sha: String = Sha256::digest(fs::read(dir.path().join("blocks.csv")).unwrap())
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect();
+    assert_eq!(blocks.sha256, sha);
+    assert_eq!(blocks.sha256.len(), 64);
+}
+
+#[test]
+fn csv_comma_reads_typed_columns_and_grades() {
+    let t = read_table(&data("blocks.csv"), &BLOCK_MODEL).unwrap();
+    assert_eq!(t.file, "blocks.csv");
+    assert_eq!(t.len(), 8);
+    assert_eq!(t.f64("x").unwrap()[1], 15.0);
+    assert_eq!(t.i64("block_id").unwrap()[7], Some(8));
+    assert_eq!(t.i64("cave_period").unwrap()[4], Some(1));
+    assert_eq!(t.str("lithology").unwrap()[2], "porphyry");
+    assert_eq!(t.f64("ucs").unwrap()[0], 100000.0);
+    assert!(t.f64("frag_shape").is_none(), "absent optional column");
+    let grades: Vec<&str> = t.extra.iter().map(|g| g.name.as_str()).collect();
+    assert_eq!(grades, ["cu", "mo"]);
+    assert_eq!(t.extra[1].values[3], 0.17);
+    assert!(t.warnings.is_empty());
+}
+
+#[test]
+fn csv_tab_with_aliases_reads_the_same() {
+    let a = read_table(&data("blocks.csv"), &BLOCK_MODEL).unwrap();
+    let b = read_table(&data("blocks.tsv"), &BLOCK_MODEL).unwrap();
+    for c in ["x", "y", "z", "solids_density", "porosity", "frag_size"] {
+        assert_eq!(a.f64(c), b.f64(c), "{c}");
+    }
+    assert_eq!(b.header("x"), "Easting");
+    assert_eq!(b.header("block_id"), "BlockID");
+    assert_eq!(a.i64("block_id"), b.i64("block_id"));
+    assert_eq!(a.extra, b.extra);
+}
+
+#[test]
+fn csv_semicolon_is_detected() {
+    let text = BLOCKS.replace(',', ";");
+    let t = read_bytes("blocks.csv", text.as_bytes()).unwrap();
+    assert_eq!(t.f64("porosity").unwrap()[4], 0.35);
+}
+
+#[test]
+fn csv_bom_and_quoted_numbers_and_padding() {
+    let mut text = String::from("\u{feff}");
+    text.push_str(
+        &BLOCKS.replacen("2.7,0.3", "\" 2.7 \",\"0.3\"", 1).replacen(
+            "15,5,5,2",
+            "  15 , 5 ,5,2",
+            1,
+        ),
+    );
+    let t = read_bytes("blocks.csv", text.as_bytes()).unwrap_or_else(|p| panic!("{p}"));
+    assert_eq!(
+        t.header("x"),
+        "x",
+        "the BOM is not part of the first header"
+    );
+    assert_eq!(t.f64("solids_density").unwrap()[0], 2.7);
+    assert_eq!(t.f64("porosity").unwrap()[0], 0.3);
+    assert_eq!(t.f64("x").unwrap()[1], 15.0);
+}
+
+#[test]
+fn csv_blank_rows_are_skipped_but_counted() {
+    let mut lines: Vec<&str> = BLOCKS.lines().collect();
+    lines.insert(3, ",,,,,,,,,,");
+    lines.insert(4, "");
+    let text = lines.join("\n");
+    let dir = TempDir::new().unwrap();
+    fs::write(dir.path().join("blocks.csv"), text).unwrap();
+    let t = read_table(&dir.path().join("blocks.csv"), &BLOCK_MODEL).unwrap();
+    assert_eq!(t.len(), 8);
+    assert_eq!(t.warnings.len(), 1, "{:?}", t.warnings);
+    assert!(
+        t.warnings[0].contains("skipped 1 empty row"),
+        "{:?}",
+        t.warnings
+    );
+    // The csv reader drops the truly empty line; the ",,,," line is data row 3 and skipped,
+    // so the third block is data row 4.
+    assert_eq!(t.row(2), 4);
+}
+
+#[test]
+fn parquet_reads_and_casts() {
+    let dir = TempDir::new().unwrap();
+    let path = dir.path().join("blocks.parquet");
+    let n = 8;
+    let xs: Vec<f32> = vec![5.5, 15.5, 5.5, 15.5, 5.5, 15.5, 5.5, 15.5];
+    let ys: Vec<f64> = vec![5.0, 5.0, 15.0, 15.0, 5.0, 5.0, 15.0, 15.0];
+    let zs: Vec<i32> = vec![5, 5, 5, 5, 15, 15, 15, 15];
+    let ids: Vec<f64> = (1..=n).map(|i| i as f64).collect();
+    let frag: Vec<Option<f64>> = vec![
+        Some(0.2),
+        None,
+        Some(0.2),
+        Some(0.2),
+        Some(0.5),
+        Some(0.5),
+        Some(0.5),
+        Some(0.5),
+    ];
+    let shape: Vec<Option<f64>> = vec![None, Some(2.0), None, None, None, None, None, None];
+    let scale: Vec<Option<f64>> = vec![None, Some(0.3), None, None, None, None, None, None];
+    let cols: Vec<(&str, ArrayRef)> = vec![
+        ("Easting", Arc::new(Float32Array::from(xs))),
+        ("Northing", Arc::new(Float64Array::from(ys))),
+        ("Elevation", Arc::new(Int32Array::from(zs))),
+        ("BlockID", Arc::new(Float64Array::from(ids))),
+        (
+            "CavePeriod",
+            Arc::new(Int64Array::from(vec![
+                Some(0),
+                None,
+                Some(2),
+                Some(0),
+                Some(0),
+                Some(0),
+                Some(0),
+                Some(0),
+            ])),
+        ),
+        ("SolidsDen", Arc::new(Float64Array::from(vec![2.7; n]))),
+        ("InSituPor", Arc::new(Float64Array::from(vec![0.3; n]))),
+        ("MaxPor", Arc::new(Float64Array::from(vec![0.5; n]))),
+        ("FricAng", Arc::new(Int64Array::from(vec![40; n]))),
+        ("frag_size", Arc::new(Float64Array::from(frag))),
+        ("PriFragA", Arc::new(Float64Array::from(shape))),
+        ("PriFragB", Arc::new(Float64Array::from(scale))),
+        (
+            "Lith",
+            Arc::new(StringArray::from(vec![
+                "a", "b", "a", "a", "c", "c", "c", "c",
+            ])),
+        ),
+        ("Mo", Arc::new(Float32Array::from(vec![0.1f32; n]))),
+        ("Au", Arc::new(StringArray::from(vec!["1.5"; n]))),
+    ];
+    write_parquet(&path, cols);
+    let t = read_table(&path, &BLOCK_MODEL).unwrap_or_else(|p| panic!("{p}"));
+    assert_eq!(t.f64("x").unwrap()[1], 15.5, "Float32 to f64");
+    assert_eq!(t.f64("z").unwrap()[4], 15.0, "Int32 to f64");
+    assert_eq!(
+        t.i64("block_id").unwrap()[2],
+        Some(3),
+        "integral Float64 to i64"
+    );
+    assert_eq!(
+        t.i64("cave_period").unwrap()[1],
+        None,
+        "null in an optional column"
+    );
+    assert!(t.f64("frag_size").unwrap()[1].is_nan());
+    assert_eq!(t.str("lithology").unwrap()[4], "c");
+    assert_eq!(t.extra[0].name, "Mo");
+    assert_eq!(
+        t.extra[0].values[0], 0.1,
+        "Float32 reads through its decimal form, not as 0.10000000149"
+    );
+    assert_eq!(
+        t.extra[1].values[0], 1.5,
+        "numeric text in a Utf8 grade column"
+    );
+
+    // And as a whole scene, with the Weibull mean filling the missing frag_size.
+    let mut sc = Scenario::default();
+    sc.inputs.blocks = path.clone();
+    sc.inputs.drawpoints = dir.path().join("dp.csv");
+    fs::write(&sc.inputs.drawpoints, "name,x,y,z\nA,5,5,0\n").unwrap();
+    sc.inputs.schedule = dir.path().join("schedule.csv");
+    fs::write(
+        &sc.inputs.schedule,
+        SCHEDULE_CSV.replace("DP2", "A").replace("DP1", "A"),
+    )
+    .unwrap();
+    let l = load_scene(&sc).unwrap_or_else(|p| panic!("{p}"));
+    assert!(
+        close(l.scene.blocks.frag[1], 0.3 * 0.886_226_925_452_758),
+        "{}",
+        l.scene.blocks.frag[1]
+    );
+    assert_eq!(l.scene.blocks.size, [10.0, 10.0, 10.0]);
+    assert_eq!(
+        l.scene.blocks.cave_period[1], 0,
+        "missing cave period defaults to 0"
+    );
+    assert_eq!(l.scene.blocks.lithology_names, ["a", "b", "c"]);
+    assert_eq!(l.scene.drawpoints.width, [4.0], "scenario default width");
+    assert!(
+        l.warnings
+            .iter()
+            .any(|w| w.contains("default_opening_width")),
+        "{:?}",
+        l.warnings
+    );
+    assert!(
+        l.warnings.iter().any(|w| w.contains("one day long")),
+        "{:?}",
+        l.warnings
+    );
+    assert_eq!(l.scene.periods.days, [1.0, 1.0]);
+    assert_eq!(l.scene.schedule.period(0), [200.0]);
+    assert_eq!(l.inputs[0].rows, 8);
+}
+
+fn write_parquet(path: &Path, cols: Vec<(&str, ArrayRef)>) {
+    let fields: Vec<Field> = cols
+        .iter()
+        .map(|(n, a)| Field::new(*n, a.data_type().clone(), true))
+        .collect();
+    let batch = RecordBatch::try_new(
+        Arc::new(Schema::new(fields)),
+        cols.into_iter().map(|c| c.1).collect(),
+    )
+    .unwrap();
+    let mut w =
+        ArrowWriter::try_new(fs::File::create(path).unwrap(), batch.schema(), None).unwrap();
+    w.write(&batch).unwrap();
+    w.close().unwrap();
+}
+
+#[test]
+fn parquet_type_problems() {
+    let dir = TempDir::new().unwrap();
+    let path = dir.path().join("periods.pq");
+    write_parquet(
+        &path,
+        vec![
+            (
+                "period",
+                Arc::new(Float64Array::from(vec![Some(1.0), Some(2.5), None])) as ArrayRef,
+            ),
+            (
+                "days",
+                Arc::new(Float64Array::from(vec![30.0, f64::INFINITY, 31.0])),
+            ),
+            (
+                "name",
+                Arc::new(arrow::array::BooleanArray::from(vec![true, false, true])),
+            ),
+        ],
+    );
+    let p = read_table(&path, &PERIODS).unwrap_err();
+    expect(&p, "periods.pq", Some(2), Some("period"), "mistyped");
+    expect(&p, "periods.pq", Some(3), Some("period"), "missing-value");
+    expect(&p, "periods.pq", Some(2), Some("days"), "not-finite");
+    assert_eq!(p.0.len(), 3, "a boolean name column is read as text:\n{p}");
+
+    let bad = dir.path().join("bad.parquet");
+    fs::write(&bad, b"PAR1 this is not parquet at all PAR1").unwrap();
+    let p = read_table(&bad, &PERIODS).unwrap_err();
+    expect(&p, "bad.parquet", None, None, "unreadable");
+}
+
+#[test]
+fn massflow_block_model_with_weibull_and_grades() {
+    let t = read_table(&data("massflow/blocks.csv"), &BLOCK_MODEL).unwrap();
+    assert_eq!(t.header("porosity"), "InSituPor");
+    let grades: Vec<&str> = t.extra.iter().map(|g| g.name.as_str()).collect();
+    assert_eq!(
+        grades,
+        ["Mo", "Cu"],
+        "every column that is not a field is a grade"
+    );
+
+    let l = massflow_scene(data("massflow/schedule_wide.csv"));
+    let b = &l.scene.blocks;
+    assert_eq!(b.len(), 4);
+    assert_eq!(
+        b.size,
+        [15.0, 15.0, 15.0],
+        "one elevation: z takes the horizontal size"
+    );
+    assert!(
+        l.warnings.iter().any(|w| w.contains("share one z centre")),
+        "{:?}",
+        l.warnings
+    );
+    assert!(close(b.frag[0], 0.23), "shape 1: the mean is the scale");
+    assert!(
+        close(b.frag[2], 0.04 * 0.886_226_925_452_758),
+        "{}",
+        b.frag[2]
+    );
+    assert_eq!(b.frag_shape[2], 2.0);
+    assert!(
+        close(b.tensile[0], 5000.0 * 0.886_226_925_452_758),
+        "Weibull mean tensile strength"
+    );
+    assert!(close(b.tensile[2], 9000.0), "0.1 x UCS");
+    assert!(b.tensile[3].is_nan(), "no tensile strength, no UCS");
+    assert_eq!(b.perc_k1[..], [10.0, 10.0, 11.0, 11.0]);
+    assert_eq!(b.perc_k2[..], [4.0, 4.0, 4.5, 4.5]);
+    assert_eq!(b.perc_vmr[..], [0.5; 4]);
+    assert_eq!(b.cave_period[3], 2);
+    assert_eq!(b.grade_names, ["Mo", "Cu"]);
+    assert_eq!(b.grades[0][1], 0.28);
+    assert_eq!(b.lithology_names, ["default"]);
+}
+
+fn massflow_scene(schedule: PathBuf) -> LoadedScene {
+    let mut sc = Scenario::default();
+    sc.inputs.blocks = data("massflow/blocks.csv");
+    sc.inputs.drawpoints = data("massflow/drawpoints.csv");
+    sc.inputs.drawbells = Some(data("massflow/drawbells.csv"));
+    sc.inputs.schedule = schedule;
+    load_scene(&sc).unwrap_or_else(|p| panic!("{p}"))
+}
+
+#[test]
+fn massflow_drawpoints_take_widths_from_drawbells() {
+    let t = read_table(&data("massflow/drawpoints.csv"), &DRAWPOINTS).unwrap();
+    assert_eq!(t.str("drawbell").unwrap()[0], "DB1");
+    assert_eq!(t.str("bell_type").unwrap()[2], "", "empty optional text");
+    let bells = read_table(&data("massflow/drawbells.csv"), &DRAWBELLS).unwrap();
+    assert_eq!(bells.f64("height").unwrap()[1], 4.5);
+
+    let l = massflow_scene(data("massflow/schedule_wide.csv"));
+    let d = &l.scene.drawpoints;
+    assert_eq!(d.name, ["P01", "P02", "P03"]);
+    // P01: DBID DB1 is no bell, its DBType Standard is; P02: type Wide; P03: DBID DB3.
+    assert_eq!(d.width, [4.2, 5.0, 3.8]);
+    assert_eq!(d.z[0], 7690.0);
+    assert!(
+        !l.warnings
+            .iter()
+            .any(|w| w.contains("default_opening_width")),
+        "{:?}",
+        l.warnings
+    );
+}
+
+#[test]
+fn wide_schedule_with_every_header_form() {
+    let s = read_schedule(&data("massflow/schedule_wide.csv")).unwrap();
+    assert_eq!(s.form, ScheduleForm::Wide);
+    let p = s.periods.as_ref().unwrap();
+    assert_eq!(p.id, [1, 2, 3, 4, 5, 6]);
+    assert_eq!(
+        p.name,
+        ["30", "Sept-08", "Feb-08", "Feb-09", "Jan-2009", "Q1"]
+    );
+    // Integer header = days; September 30; February 2008 is a leap month; 2009 is not.
+    assert_eq!(p.days, [30.0, 30.0, 29.0, 28.0, 31.0, 90.5]);
+    assert_eq!(s.rows, 3);
+
+    let l = massflow_scene(data("massflow/schedule_wide.csv"));
+    let sch = &l.scene.schedule;
+    assert_eq!(l.scene.periods.len(), 6);
+    assert_eq!(sch.period(0), [100.0, 0.0, 20.0]);
+    assert_eq!(
+        sch.period(2),
+        [0.0, 75.0, 0.0],
+        "empty cells are zero tonnes"
+    );
+    assert_eq!(sch.period(5), [1000.0, 900.5, 5.0]);
+    assert_eq!(sch.total(0), 1360.0);
+    assert!(!l.warnings.iter().any(|w| w.contains("one day long")));
+}
+
+#[test]
+fn wide_schedule_tab_delimited() {
+    let s = read_schedule(&data("massflow/schedule_wide.tsv")).unwrap();
+    let p = s.periods.as_ref().unwrap();
+    assert_eq!(p.name, ["Sep-08", "Oct-08"]);
+    assert_eq!(p.days, [30.0, 31.0]);
+    assert_eq!(s.entries.len(), 4);
+    assert_eq!(s.drawpoint_column, "DPName");
+}
+
+#[test]
+fn period_headers() {
+    assert_eq!(parse_period_header("31"), Ok(("31".into(), 31.0)));
+    assert_eq!(parse_period_header("Sept-08"), Ok(("Sept-08".into(), 30.0)));
+    assert_eq!(parse_period_header("sep-08"), Ok(("sep-08".into(), 30.0)));
+    assert_eq!(
+        parse_period_header("Feb-2000"),
+        Ok(("Feb-2000".into(), 29.0)),
+        "400-year leap"
+    );
+    assert_eq!(
+        parse_period_header("Feb-1900"),
+        Ok(("Feb-1900".into(), 28.0)),
+        "century, not leap"
+    );
+    assert_eq!(
+        parse_period_header("Feb-96"),
+        Ok(("Feb-96".into(), 29.0)),
+        "96 is 1996"
+    );
+    assert_eq!(
+        parse_period_header("February 2012"),
+        Ok(("February 2012".into(), 29.0))
+    );
+    assert_eq!(parse_period_header("Dec/10"), Ok(("Dec/10".into(), 31.0)));
+    assert_eq!(parse_period_header("Q1%90.5"), Ok(("Q1".into(), 90.5)));
+    assert_eq!(parse_period_header("Week 3%7"), Ok(("Week 3".into(), 7.0)));
+    for bad in [
+        "0", "Q1%0", "Q1%-3", "%30", "Se-08", "Foo-08", "Jan-123", "abc", "", "1.5",
+    ] {
+        assert!(parse_period_header(bad).is_err(), "{bad}");
+    }
+}
+
+#[test]
+fn long_schedule_reads_from_csv() {
+    let s = read_schedule(&data("schedule.csv")).unwrap();
+    assert_eq!(s.form, ScheduleForm::Long);
+    assert!(s.periods.is_none());
+    assert_eq!(s.entries.len(), 4);
+    assert_eq!(s.entries[3].row, 4);
+    let t = read_table(&data("schedule.csv"), &SCHEDULE).unwrap();
+    assert_eq!(t.f64("tonnes").unwrap()[1], 120.0);
+}
+
+#[test]
+fn fixture_scene_sums_repeated_rows_and_reads_zones() {
+    let mut sc = Scenario::default();
+    sc.inputs.blocks = data("blocks.csv");
+    sc.inputs.drawpoints = data("drawpoints.csv");
+    sc.inputs.periods = Some(data("periods.csv"));
+    sc.inputs.schedule = data("schedule.csv");
+    sc.flow.default_opening_width = 3.0;
+    let l = load_scene(&sc).unwrap_or_else(|p| panic!("{p}"));
+    assert_eq!(l.scene.schedule.period(1), [75.0, 0.0]);
+    assert!(
+        l.warnings.iter().any(|w| w.contains("summed")),
+        "{:?}",
+        l.warnings
+    );
+    assert_eq!(l.scene.drawpoints.width, [4.5, 3.0]);
+    assert_eq!(l.scene.drawpoints.zone, ["north", "south"]);
+    assert_eq!(l.scene.periods.name, ["Jan-09", "Feb-09"]);
+    assert_eq!(l.scene.blocks.cave_period[4], 1);
+    assert_eq!(l.scene.blocks.lithology_names, ["ore", "porphyry", "waste"]);
+}
+
+#[test]
+fn unknown_columns_of_fixed_tables_are_ignored_with_a_warning() {
+    let (_d, r) = load(Files {
+        drawpoints: "name,x,y,z,width,comment\nDP1,5,5,0,4,hi\nDP2,15,15,0,4,\n".into(),
+        ..Files::default()
+    });
+    let l = r.unwrap_or_else(|p| panic!("{p}"));
+    assert!(
+        l.warnings
+            .iter()
+            .any(|w| w.contains("drawpoints.csv") && w.contains("`comment`")),
+        "{:?}",
+        l.warnings
+    );
+}
+
+// ---------------------------------------------------------------------------------------
+// Malformed files: none may panic; each gives its named rule.
+
+#[test]
+fn ragged_row() {
+    let text = BLOCKS.replacen("15,5,5,2,2.7", "15,5,5,2,2.7,9", 1);
+    let p = read_bytes("blocks.csv", text.as_bytes()).unwrap_err();
+    let pr = expect(&p, "blocks.csv", Some(2), None, "ragged-row");
+    assert!(
+        pr.message.contains("12 fields") && pr.message.contains("11"),
+        "{pr}"
+    );
+}
+
+#[test]
+fn duplicate_headers() {
+    let text = BLOCKS.replacen("x,y,z,block_id", "x,y,z,Easting", 1);
+    let p = read_bytes("blocks.csv", text.as_bytes()).unwrap_err();
+    let pr = expect(
+        &p,
+        "blocks.csv",
+        Some(0),
+        Some("Easting"),
+        "duplicate-header",
+    );
+    assert!(
+        pr.message.contains("`x`") && pr.message.contains("Easting"),
+        "{pr}"
+    );
+    let text = "x,y,z,block_id,solids_density,porosity,max_porosity,friction_angle,frag_size,cu,CU\n5,5,5,1,2.7,0.3,0.45,38,0.2,1,1\n";
+    let p = read_bytes("blocks.csv", text.as_bytes()).unwrap_err();
+    let pr = expect(&p, "blocks.csv", Some(0), Some("CU"), "duplicate-header");
+    assert!(pr.message.contains("more than once"), "{pr}");
+}
+
+#[test]
+fn non_utf8_bytes() {
+    let mut bytes = BLOCKS.as_bytes().to_vec();
+    let at = BLOCKS.find("waste").unwrap();
+    bytes[at + 1] = 0xE1; // Latin-1 á
+    let p = read_bytes("blocks.csv", &bytes).unwrap_err();
+    expect(&p, "blocks.csv", Some(5), Some("lithology"), "not-utf8");
+    let mut bytes = BLOCKS.as_bytes().to_vec();
+    bytes[1] = 0xFF;
+    bytes.insert(1, b'x');
+    let p = read_bytes("blocks.csv", &bytes).unwrap_err();
+    assert!(p.has("not-utf8"), "{p}");
+    assert_eq!(p.0[0].row, Some(0));
+}
+
+#[test]
+fn empty_files() {
+    // No bytes, blank lines, a header only, a BOM only.
+    for text in ["", "\n\n", "x,y,z\n", "\u{feff}"] {
+        let p = read_bytes("blocks.csv", text.as_bytes()).unwrap_err();
+        expect(&p, "blocks.csv", None, None, "empty-table");
+    }
+    let p = edited(|f| f.drawpoints = "name,x,y,z\n".into());
+    expect(&p, "drawpoints.csv", None, None, "empty-table");
+    let p = edited(|f| f.schedule = "DPName,Jan-09\n".into());
+    expect(&p, "schedule.csv", None, None, "empty-table");
+    let p = edited(|f| f.schedule = String::new());
+    expect(&p, "schedule.csv", None, None, "empty-table");
+}
+
+#[test]
+fn missing_files_and_inputs() {
+    let mut sc = Scenario::default();
+    sc.inputs.blocks = PathBuf::from("/nonexistent/blocks.csv");
+    let p = load_scene(&sc).unwrap_err();
+    let pr = expect(&p, "blocks.csv", None, None, "unreadable");
+    assert!(pr.message.contains("/nonexistent/blocks.csv"), "{pr}");
+    expect(&p, "scenario", None, None, "no-input");
+    assert!(
+        p.0.iter().any(|x| x.message.contains("inputs.drawpoints")),
+        "{p}"
+    );
+    assert!(
+        p.0.iter().any(|x| x.message.contains("inputs.schedule")),
+        "{p}"
+    );
+}
+
+#[test]
+fn mangled_inputs_never_panic() {
+    // Every truncation and a sweep of byte substitutions of a valid file, through every
+    // reader: each must return, Ok or Err, without panicking.
+    let dir = TempDir::new().unwrap();
+    let csv = dir.path().join("t.csv");
+    let wide = fs::read(data("massflow/schedule_wide.csv")).unwrap();
+    let sources = [BLOCKS.as_bytes().to_vec(), wide];
+    let specs = [BLOCK_MODEL, DRAWPOINTS, DRAWBELLS, PERIODS, SCHEDULE];
+    for src in &sources {
+        for cut in 0..src.len() {
+            fs::write(&csv, &src[..cut]).unwrap();
+            for spec in &specs {
+                let _ = read_table(&csv, spec);
+            }
+            let _ = read_schedule(&csv);
+        }
+        for (i, b) in [b'"', b',', b'\n', b'\t', 0xFF, b'%', b'-', b'9']
+            .iter()
+            .cycle()
+            .take(src.len())
+            .enumerate()
+        {
+            let mut m = src.clone();
+            m[i] = *b;
+            fs::write(&csv, &m).unwrap();
+            let _ = read_table(&csv, &BLOCK_MODEL);
+            let _ = read_schedule(&csv);
+        }
+    }
+    // A parquet file cut short.
+    let pq = dir.path().join("t.parquet");
+    write_parquet(
+        &pq,
+        vec![(
+            "x",
+            Arc::new(Float64Array::from(vec![1.0, 2.0])) as ArrayRef,
+        )],
+    );
+    let full = fs::read(&pq).unwrap();
+    for cut in (0..full.len()).step_by(7) {
+        fs::write(&pq, &full[..cut]).unwrap();
+        assert!(read_table(&pq, &BLOCK_MODEL).is_err());
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// Cell rules.
+
+#[test]
+fn not_finite() {
+    let p = edited(|f| set(&mut f.blocks, 2, "porosity", "NaN"));
+    expect(&p, "blocks.csv", Some(2), Some("porosity"), "not-finite");
+    let p = edited(|f| set(&mut f.blocks, 3, "cu", "inf"));
+    expect(&p, "blocks.csv", Some(3), Some("cu"), "not-finite");
+    let p = edited(|f| set(&mut f.schedule, 1, "tonnes", "-Infinity"));
+    expect(&p, "schedule.csv", Some(1), Some("tonnes"), "not-finite");
+}
+
+#[test]
+fn missing_value() {
+    let p = edited(|f| set(&mut f.blocks, 4, "solids_density", ""));
+    let pr = expect(
+        &p,
+        "blocks.csv",
+        Some(4),
+        Some("solids_density"),
+        "missing-value",
+    );
+    assert!(pr.message.contains("required"), "{pr}");
+    let p = edited(|f| set(&mut f.blocks, 5, "cu", ""));
+    expect(&p, "blocks.csv", Some(5), Some("cu"), "missing-value");
+    let p = edited(|f| set(&mut f.blocks, 6, "lithology", ""));
+    expect(
+        &p,
+        "blocks.csv",
+        Some(6),
+        Some("lithology"),
+        "missing-value",
+    );
+    let p = edited(|f| set(&mut f.blocks, 7, "frag_size", ""));
+    let pr = expect(
+        &p,
+        "blocks.csv",
+        Some(7),
+        Some("frag_size"),
+        "missing-value",
+    );
+    assert!(pr.message.contains("frag_shape"), "{pr}");
+    let p = edited(|f| f.schedule = "DPName,Jan-09\n,5\n".into());
+    expect(&p, "schedule.csv", Some(1), Some("DPName"), "missing-value");
+}
+
+#[test]
+fn mistyped() {
+    let p = edited(|f| set(&mut f.blocks, 1, "friction_angle", "steep"));
+    let pr = expect(
+        &p,
+        "blocks.csv",
+        Some(1),
+        Some("friction_angle"),
+        "mistyped",
+    );
+    assert!(pr.message.contains("`steep`"), "{pr}");
+    let p = edited(|f| set(&mut f.blocks, 2, "block_id", "2.5"));
+    expect(&p, "blocks.csv", Some(2), Some("block_id"), "mistyped");
+    let text = BLOCKS
+        .replace(',', ";")
+        .replacen("5;15;5;3;2.7;0.3", "5;15;5;3;2.7;0,3", 1);
+    let p = read_bytes("blocks.csv", text.as_bytes()).unwrap_err();
+    let pr = expect(&p, "blocks.csv", Some(3), Some("porosity"), "mistyped");
+    assert!(pr.message.contains("decimal point"), "{pr}");
+    // A non-numeric extra column of the block model is not a grade.
+    let p = edited(|f| {
+        f.blocks = f
+            .blocks
+            .lines()
+            .enumerate()
+            .map(|(i, l)| {
+                format!(
+                    "{l},{}\n",
+                    if i == 0 {
+                        "comment"
+                    } else if i == 3 {
+                        "check me"
+                    } else {
+                        ""
+                    }
+                )
+            })
+            .collect();
+    });
+    let pr = expect(&p, "blocks.csv", Some(3), Some("comment"), "mistyped");
+    assert!(pr.message.contains("grade"), "{pr}");
+    let p = edited(|f| f.schedule = "DPName,Jan-09\nDP1,lots\n".into());
+    expect(&p, "schedule.csv", Some(1), Some("Jan-09"), "mistyped");
+}
+
+#[test]
+fn missing_column() {
+    let p = edited(|f| drop_column(&mut f.blocks, "solids_density"));
+    let pr = expect(
+        &p,
+        "blocks.csv",
+        None,
+        Some("solids_density"),
+        "missing-column",
+    );
+    assert!(
+        pr.message.contains("SolidsDen"),
+        "lists the accepted headers: {pr}"
+    );
+    let p = edited(|f| drop_column(&mut f.blocks, "frag_size"));
+    let pr = expect(&p, "blocks.csv", None, Some("frag_size"), "missing-column");
+    assert!(pr.message.contains("PriFragA"), "{pr}");
+    let p = edited(|f| drop_column(&mut f.drawpoints, "z"));
+    expect(&p, "drawpoints.csv", None, Some("z"), "missing-column");
+    let p = edited(|f| f.schedule = "DPName\nDP1\n".into());
+    expect(&p, "schedule.csv", Some(0), None, "missing-column");
+}
+
+#[test]
+fn problems_are_capped_per_rule() {
+    let p = edited(|f| {
+        let mut lines: Vec<String> = Vec::new();
+        lines.push(BLOCKS.lines().next().unwrap().into());
+        for i in 0..30 {
+            lines.push(format!(
+                "{},5,5,{},2700,0.3,0.45,38,0.2,ore,1.0",
+                5 + 10 * i,
+                i + 1
+            ));
+        }
+        f.blocks = lines.join("\n");
+    });
+    let kept: Vec<_> = p.with_rule("units-kg-m3").collect();
+    assert_eq!(kept.len(), KEEP_PER_RULE + 1, "{p}");
+    let last = kept[KEEP_PER_RULE];
+    assert_eq!(last.row, None);
+    assert!(last.message.contains("10 more rows"), "{last}");
+}
+
+// ---------------------------------------------------------------------------------------
+// Block model rules.
+
+#[test]
+fn density_rules() {
+    let p = edited(|f| set(&mut f.blocks, 1, "solids_density", "2700"));
+    let pr = expect(
+        &p,
+        "blocks.csv",
+        Some(1),
+        Some("solids_density"),
+        "units-kg-m3",
+    );
+    assert!(pr.message.contains("divide by 1000"), "{pr}");
+    let p = edited(|f| set(&mut f.blocks, 2, "solids_density", "0"));
+    expect(
+        &p,
+        "blocks.csv",
+        Some(2),
+        Some("solids_density"),
+        "not-positive",
+    );
+}
+
+#[test]
+fn porosity_rules() {
+    let p = edited(|f| set(&mut f.blocks, 3, "porosity", "1.3"));
+    let pr = expect(
+        &p,
+        "blocks.csv",
+        Some(3),
+        Some("porosity"),
+        "porosity-range",
+    );
+    assert_eq!(
+        pr.to_string(),
+        "blocks.csv: row 3, column porosity: [porosity-range] porosity 1.3 is outside [0, 1)"
+    );
+    let p = edited(|f| set(&mut f.blocks, 4, "max_porosity", "45"));
+    let pr = expect(
+        &p,
+        "blocks.csv",
+        Some(4),
+        Some("max_porosity"),
+        "units-percent",
+    );
+    assert!(
+        pr.message.contains("percentage") && pr.message.contains("0.45"),
+        "{pr}"
+    );
+    let p = edited(|f| set(&mut f.blocks, 5, "porosity", "-0.1"));
+    expect(
+        &p,
+        "blocks.csv",
+        Some(5),
+        Some("porosity"),
+        "porosity-range",
+    );
+    let p = edited(|f| set(&mut f.blocks, 6, "max_porosity", "0.2"));
+    let pr = expect(
+        &p,
+        "blocks.csv",
+        Some(6),
+        Some("max_porosity"),
+        "n1-below-n0",
+    );
+    assert!(
+        pr.message.contains("0.2") && pr.message.contains("0.35"),
+        "{pr}"
+    );
+}
+
+#[test]
+fn friction_range() {
+    for v in ["0", "90", "-5", "120"] {
+        let p = edited(|f| set(&mut f.blocks, 7, "friction_angle", v));
+        let pr = expect(
+            &p,
+            "blocks.csv",
+            Some(7),
+            Some("friction_angle"),
+            "friction-range",
+        );
+        assert!(pr.message.contains("(0, 90)"), "{pr}");
+    }
+}
+
+#[test]
+fn fragment_and_strength_rules() {
+    let p = edited(|f| set(&mut f.blocks, 8, "frag_size", "-0.2"));
+    expect(&p, "blocks.csv", Some(8), Some("frag_size"), "not-positive");
+    let p = edited(|f| {
+        set(&mut f.blocks, 1, "frag_size", "");
+        f.blocks = f
+            .blocks
+            .lines()
+            .enumerate()
+            .map(|(i, l)| {
+                format!(
+                    "{l},{}\n",
+                    if i == 0 {
+                        "PriFragA,PriFragB"
+                    } else if i == 1 {
+                        "0.001,0.2"
+                    } else {
+                        ","
+                    }
+                )
+            })
+            .collect();
+    });
+    let pr = expect(&p, "blocks.csv", Some(1), Some("PriFragA"), "not-finite");
+    assert!(pr.message.contains("Weibull"), "{pr}");
+    let p = edited(|f| {
+        f.blocks = f
+            .blocks
+            .lines()
+            .enumerate()
+            .map(|(i, l)| {
+                format!(
+                    "{l},{}\n",
+                    if i == 0 {
+                        "UCS"
+                    } else if i == 2 {
+                        "-5"
+                    } else {
+                        "1000"
+                    }
+                )
+            })
+            .collect();
+    });
+    expect(&p, "blocks.csv", Some(2), Some("UCS"), "not-positive");
+    let p = edited(|f| {
+        f.blocks = f
+            .blocks
+            .lines()
+            .enumerate()
+            .map(|(i, l)| {
+                format!(
+                    "{l},{}\n",
+                    if i == 0 {
+                        "PercK2"
+                    } else if i == 2 {
+                        "-1"
+                    } else {
+                        ""
+                    }
+                )
+            })
+            .collect();
+    });
+    expect(&p, "blocks.csv", Some(2), Some("PercK2"), "negative");
+}
+
+#[test]
+fn negative_grade() {
+    let p = edited(|f| set(&mut f.blocks, 2, "cu", "-0.5"));
+    let pr = expect(&p, "blocks.csv", Some(2), Some("cu"), "negative");
+    assert!(pr.message.contains("grade cu"), "{pr}");
+}
+
+#[test]
+fn duplicate_block_id() {
+    let p = edited(|f| set(&mut f.blocks, 5, "block_id", "2"));
+    let pr = expect(&p, "blocks.csv", Some(5), Some("block_id"), "duplicate-id");
+    assert!(pr.message.contains("row 2"), "{pr}");
+}
+
+#[test]
+fn mixed_block_size_and_off_grid() {
+    // Centres at x = 5, 15 and 22: the smallest spacing is 7 m, and 15 is not on that grid.
+    let p = edited(|f| set(&mut f.blocks, 2, "x", "22"));
+    let pr = expect(&p, "blocks.csv", None, Some("x"), "mixed-block-size");
+    assert!(
+        pr.message.contains("5 and 15") && pr.message.contains("7 m"),
+        "{pr}"
+    );
+    let pr = expect(&p, "blocks.csv", Some(4), Some("x"), "off-grid");
+    assert!(pr.message.contains("x=15"), "{pr}");
+}
+
+#[test]
+fn duplicate_cell() {
+    let p = edited(|f| {
+        set(&mut f.blocks, 8, "x", "5");
+        set(&mut f.blocks, 8, "y", "15");
+    });
+    let pr = expect(&p, "blocks.csv", Some(8), None, "duplicate-cell");
+    assert!(pr.message.contains("row 7"), "{pr}");
+}
+
+#[test]
+fn block_size_and_grid_too_large() {
+    let p = edited(|f| f.blocks = BLOCKS.lines().take(2).collect::<Vec<_>>().join("\n"));
+    expect(&p, "blocks.csv", None, None, "block-size");
+    let p = edited(|f| set(&mut f.blocks, 8, "x", "1e9"));
+    let pr = expect(&p, "blocks.csv", None, Some("x"), "grid-too-large");
+    assert!(pr.message.contains("stray coordinate"), "{pr}");
+}
+
+#[test]
+fn too_many_lithologies() {
+    let mut text = String::from(
+        "x,y,z,block_id,solids_density,porosity,max_porosity,friction_angle,frag_size,lithology\n",
+    );
+    for i in 0..65_537 {
+        text.push_str(&format!(
+            "{},{},5,{i},2.7,0.3,0.45,38,0.2,L{i}\n",
+            5 + 10 * (i % 256),
+            5 + 10 * (i / 256)
+        ));
+    }
+    let p = edited(|f| f.blocks = text);
+    expect(
+        &p,
+        "blocks.csv",
+        Some(65_537),
+        Some("lithology"),
+        "too-many-lithologies",
+    );
+}
+
+// ---------------------------------------------------------------------------------------
+// Drawpoints and drawbells.
+
+#[test]
+fn drawpoint_rules() {
+    let p = edited(|f| set(&mut f.drawpoints, 2, "name", "DP1"));
+    let pr = expect(&p, "drawpoints.csv", Some(2), Some("name"), "duplicate-id");
+    assert!(
+        pr.message.contains("`DP1`") && pr.message.contains("row 1"),
+        "{pr}"
+    );
+    let p = edited(|f| set(&mut f.drawpoints, 1, "width", "0"));
+    expect(&p, "drawpoints.csv", Some(1), Some("width"), "not-positive");
+    let p = edited(|f| set(&mut f.drawpoints, 2, "x", "25"));
+    let pr = expect(&p, "drawpoints.csv", Some(2), Some("x"), "outside-model");
+    assert!(pr.message.contains("`DP2`"), "{pr}");
+    let p = edited(|f| set(&mut f.drawpoints, 1, "z", "-10.5"));
+    let pr = expect(&p, "drawpoints.csv", Some(1), Some("z"), "outside-model");
+    assert!(pr.message.contains("one block height"), "{pr}");
+    let p = edited(|f| set(&mut f.drawpoints, 1, "z", "31"));
+    expect(&p, "drawpoints.csv", Some(1), Some("z"), "outside-model");
+    // Exactly one block below the grid is still inside.
+    let (_d, r) = load({
+        let mut f = Files::default();
+        set(&mut f.drawpoints, 1, "z", "-10");
+        f
+    });
+    r.unwrap_or_else(|p| panic!("{p}"));
+}
+
+#[test]
+fn drawbell_rules() {
+    let dp = "DPName,X,Y,Z,DBID,DBType\nDP1,5,5,0,B1,\nDP2,15,15,0,B9,T9\n";
+    let p = edited(|f| {
+        f.drawpoints = dp.into();
+        f.drawbells = Some("BellName,DDWidth\nB1,4\n".into());
+    });
+    let pr = expect(
+        &p,
+        "drawpoints.csv",
+        Some(2),
+        Some("DBID"),
+        "unknown-drawbell",
+    );
+    assert!(
+        pr.message.contains("`B9`") && pr.message.contains("`T9`"),
+        "{pr}"
+    );
+    let p = edited(|f| {
+        f.drawpoints = dp.into();
+        f.drawbells = Some("BellName,DDWidth\nB1,0\nB9,4\nB1,4\n".into());
+    });
+    expect(
+        &p,
+        "drawbells.csv",
+        Some(1),
+        Some("DDWidth"),
+        "not-positive",
+    );
+    expect(
+        &p,
+        "drawbells.csv",
+        Some(3),
+        Some("BellName"),
+        "duplicate-id",
+    );
+    // A broken drawbells file is reported once, without knock-on join errors.
+    let p = edited(|f| {
+        f.drawpoints = dp.into();
+        f.drawbells = Some("BellName\nB1\n".into());
+    });
+    expect(&p, "drawbells.csv", None, Some("width"), "missing-column");
+    assert!(!p.has("unknown-drawbell"), "{p}");
+}
+
+// ---------------------------------------------------------------------------------------
+// Periods and schedule.
+
+#[test]
+fn period_rules() {
+    let p = edited(|f| set(f.periods.as_mut().unwrap(), 2, "days", "0"));
+    expect(&p, "periods.csv", Some(2), Some("days"), "not-positive");
+    let p = edited(|f| set(f.periods.as_mut().unwrap(), 2, "period", "1"));
+    expect(&p, "periods.csv", Some(2), Some("period"), "duplicate-id");
+    let p = edited(|f| f.periods = Some("period,days\n2,30\n1,30\n".into()));
+    let pr = expect(&p, "periods.csv", Some(2), Some("period"), "period-order");
+    assert!(pr.message.contains("strictly increase"), "{pr}");
+}
+
+#[test]
+fn schedule_rules() {
+    let p = edited(|f| set(&mut f.schedule, 2, "tonnes", "-5"));
+    expect(&p, "schedule.csv", Some(2), Some("tonnes"), "negative");
+    let p = edited(|f| set(&mut f.schedule, 3, "drawpoint", "DP7"));
+    let pr = expect(
+        &p,
+        "schedule.csv",
+        Some(3),
+        Some("drawpoint"),
+        "unknown-drawpoint",
+    );
+    assert!(pr.message.contains("`DP7`"), "{pr}");
+    let p = edited(|f| set(&mut f.schedule, 1, "period", "3"));
+    expect(
+        &p,
+        "schedule.csv",
+        Some(1),
+        Some("period"),
+        "unknown-period",
+    );
+    // Wide form: the row is named once even if many periods draw from it.
+    let p = edited(|f| {
+        f.schedule = "DPName,Jan-09,Feb-09,Mar-09\nDP1,1,2,-3\nDPX,1,2,3\n".into();
+    });
+    let unknown: Vec<_> = p.with_rule("unknown-drawpoint").collect();
+    assert_eq!(unknown.len(), 1, "{p}");
+    expect(
+        &p,
+        "schedule.csv",
+        Some(2),
+        Some("DPName"),
+        "unknown-drawpoint",
+    );
+    expect(&p, "schedule.csv", Some(1), Some("Mar-09"), "negative");
+    expect(
+        &p,
+        "schedule.csv",
+        Some(1),
+        Some("Mar-09"),
+        "unknown-period",
+    );
+}
+
+#[test]
+fn wide_schedule_header_rules() {
+    let p = edited(|f| {
+        f.periods = None;
+        f.schedule = "DPName,Jan-09,Next month,Jan-09\nDP1,1,2,3\n".into();
+    });
+    let pr = expect(
+        &p,
+        "schedule.csv",
+        Some(0),
+        Some("Next month"),
+        "period-header",
+    );
+    assert!(
+        pr.message.contains("Sept-08") && pr.message.contains("Name%Days"),
+        "{pr}"
+    );
+    expect(
+        &p,
+        "schedule.csv",
+        Some(0),
+        Some("Jan-09"),
+        "duplicate-header",
+    );
+}
+
+#[test]
+fn wide_schedule_with_periods_table_uses_the_table() {
+    let (_d, r) = load(Files {
+        schedule: "DPName,Jan-09,Feb-09\nDP1,10,20\nDP2,30,\n".into(),
+        ..Files::default()
+    });
+    let l = r.unwrap_or_else(|p| panic!("{p}"));
+    assert_eq!(l.scene.schedule.period(0), [10.0, 30.0]);
+    assert_eq!(l.scene.schedule.period(1), [20.0, 0.0]);
+    assert!(
+        l.warnings.iter().any(|w| w.contains("periods table")),
+        "{:?}",
+        l.warnings
+    );
+}
+
+#[test]
+fn every_file_is_checked_in_one_pass() {
+    let p = edited(|f| {
+        set(&mut f.blocks, 1, "porosity", "1.5");
+        set(&mut f.drawpoints, 1, "width", "-1");
+        set(f.periods.as_mut().unwrap(), 1, "days", "-1");
+        set(&mut f.schedule, 1, "tonnes", "-1");
+    });
+    for rule in ["porosity-range", "not-positive", "negative"] {
+        assert!(p.has(rule), "{p}");
+    }
+    assert_eq!(p.0.len(), 4, "{p}");
+    assert_eq!(p.to_string().lines().count(), 4);
+}

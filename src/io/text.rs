@@ -1,0 +1,187 @@
+//! Delimited text (CSV, TSV, semicolon-separated): the low-level scan shared by the table
+//! reader and the MassFlow wide schedule reader.
+//!
+//! # What is accepted
+//! - A UTF-8 byte-order mark is stripped.
+//! - The delimiter is whichever of comma, tab and semicolon occurs most often (outside
+//!   quotes) in the header line; ties prefer comma, then tab.
+//! - Fields may be quoted (`"1.5"` is the number 1.5); surrounding whitespace is trimmed.
+//! - Blank lines are dropped. Lines whose fields are all empty (the `,,,,` rows
+//!   spreadsheets leave behind) are skipped with a warning; they still count in row
+//!   numbers, so a message's `row 12` is the 12th record after the header.
+//! - Every other row must have as many fields as the header (`ragged-row`) and be valid
+//!   UTF-8 (`not-utf8`).
+
+use csv::{ByteRecord, ReaderBuilder, Trim};
+
+use super::problem::{Collector, Problem};
+use super::table::Cell;
+
+/// The bytes of one delimited text file, BOM stripped, delimiter detected.
+pub(crate) struct Text {
+    /// File name for messages.
+    pub file: String,
+    bytes: Vec<u8>,
+    delimiter: u8,
+}
+
+impl Text {
+    /// Wraps a file's bytes.
+    pub(crate) fn new(file: &str, mut bytes: Vec<u8>) -> Text {
+        if bytes.starts_with(b"\xEF\xBB\xBF") {
+            bytes.drain(..3);
+        }
+        let delimiter = detect_delimiter(&bytes);
+        Text {
+            file: file.to_string(),
+            bytes,
+            delimiter,
+        }
+    }
+
+    fn reader(&self) -> csv::Reader<&[u8]> {
+        ReaderBuilder::new()
+            .delimiter(self.delimiter)
+            .has_headers(false)
+            .flexible(true)
+            .trim(Trim::All)
+            .from_reader(&self.bytes[..])
+    }
+
+    /// The header names, trimmed. None (with an `empty-table` problem) when the file holds
+    /// no header line at all.
+    pub(crate) fn headers(&self, problems: &mut Collector) -> Option<Vec<String>> {
+        let mut rec = ByteRecord::new();
+        match self.reader().read_byte_record(&mut rec) {
+            Ok(true) => {}
+            Ok(false) => {
+                let message = "the file is empty: no header, no rows";
+                problems.push(Problem::file(&self.file, "empty-table", message));
+                return None;
+            }
+            Err(e) => {
+                let message = format!("cannot read the header: {e}");
+                problems.push(Problem::file(&self.file, "unreadable", message));
+                return None;
+            }
+        }
+        let mut names = Vec::with_capacity(rec.len());
+        for (i, field) in rec.iter().enumerate() {
+            match std::str::from_utf8(field) {
+                Ok(s) => names.push(s.to_string()),
+                Err(_) => {
+                    let lossy = String::from_utf8_lossy(field).into_owned();
+                    problems.push(Problem::at(
+                        &self.file,
+                        Some(0),
+                        Some(&lossy),
+                        "not-utf8",
+                        format!(
+                            "header field {} is not valid UTF-8; save the file as UTF-8",
+                            i + 1
+                        ),
+                    ));
+                    names.push(lossy);
+                }
+            }
+        }
+        Some(names)
+    }
+
+    /// Calls `visit(row, cells, problems)` for every data row, with `row` counted from 1.
+    /// Ragged rows and all-empty rows are not visited. Returns the number of data rows
+    /// (including skipped ones) and the numbers of the skipped empty rows.
+    pub(crate) fn rows(
+        &self,
+        headers: &[String],
+        problems: &mut Collector,
+        mut visit: impl FnMut(usize, &[Cell<'_>], &mut Collector),
+    ) -> (usize, Vec<usize>) {
+        let mut reader = self.reader();
+        let mut rec = ByteRecord::new();
+        let mut row = 0usize;
+        let mut skipped = Vec::new();
+        let mut first = true;
+        loop {
+            match reader.read_byte_record(&mut rec) {
+                Ok(true) => {}
+                Ok(false) => break,
+                Err(e) => {
+                    let p =
+                        Problem::at(&self.file, Some(row + 1), None, "unreadable", e.to_string());
+                    problems.push(p);
+                    break;
+                }
+            }
+            if first {
+                first = false;
+                continue;
+            }
+            row += 1;
+            if rec.iter().all(|f| f.is_empty()) {
+                skipped.push(row);
+                continue;
+            }
+            if rec.len() != headers.len() {
+                problems.push(Problem::at(
+                    &self.file,
+                    Some(row),
+                    None,
+                    "ragged-row",
+                    format!(
+                        "the row has {} fields but the header has {}",
+                        rec.len(),
+                        headers.len()
+                    ),
+                ));
+                continue;
+            }
+            let mut cells = Vec::with_capacity(headers.len());
+            for (field, name) in rec.iter().zip(headers) {
+                cells.push(match std::str::from_utf8(field) {
+                    Ok("") => Cell::Null,
+                    Ok(s) => Cell::Text(s),
+                    Err(_) => {
+                        problems.push(Problem::at(
+                            &self.file,
+                            Some(row),
+                            Some(name),
+                            "not-utf8",
+                            format!(
+                                "the value `{}` is not valid UTF-8; save the file as UTF-8",
+                                String::from_utf8_lossy(field)
+                            ),
+                        ));
+                        Cell::Invalid
+                    }
+                });
+            }
+            visit(row, &cells, problems);
+        }
+        (row, skipped)
+    }
+}
+
+/// Comma, tab or semicolon: whichever occurs most in the first line outside quotes.
+fn detect_delimiter(bytes: &[u8]) -> u8 {
+    let mut counts = [0usize; 3];
+    let mut quoted = false;
+    for &b in bytes {
+        match b {
+            b'"' => quoted = !quoted,
+            b'\n' | b'\r' if !quoted => break,
+            b',' if !quoted => counts[0] += 1,
+            b'\t' if !quoted => counts[1] += 1,
+            b';' if !quoted => counts[2] += 1,
+            _ => {}
+        }
+    }
+    let delimiters = [b',', b'\t', b';'];
+    let mut best = 0;
+    for i in 1..3 {
+        if counts[i] > counts[best] {
+            best = i;
+        }
+    }
+    delimiters[best]
+}

@@ -1,0 +1,964 @@
+//! Loading a scene: every input table read, typed, checked and joined into a [`Scene`].
+//!
+//! All inputs are read and checked even when an earlier one fails, so one run reports
+//! every problem in every file. Checks that join two tables (drawpoints to the block grid
+//! and to drawbells, the schedule to drawpoints and periods) are skipped when a table they
+//! need could not be read, so that one broken file does not bury its own problems under
+//! consequences in others.
+//!
+//! # Block model
+//! - Block size per axis: the smallest positive spacing between distinct centre values.
+//!   An axis with a single centre value (a one-block-thick model) takes the smallest size
+//!   of the other axes. Every centre must sit a whole number of blocks from the lowest
+//!   (`mixed-block-size` names the first that does not; `off-grid` names the rows).
+//! - Defaults: `cave_period` 0; `perc_k1` 11, `perc_k2` 4.5, `perc_vmr` 0.5 (summary §7.3).
+//! - `frag` = `frag_size`, else the Weibull mean `frag_scale · Γ(1 + 1/frag_shape)`.
+//! - `tensile` = `tensile_strength`, else the Weibull mean of `tensile_shape`/`tensile_scale`,
+//!   else 0.1 × `ucs` (MassFlow's ratio), else NaN.
+//! - Lithologies are numbered in order of first appearance (one lithology `default` when the
+//!   column is absent). Every extra numeric column is a grade, in % by mass.
+//!
+//! # Drawpoints
+//! Opening width = the drawpoint's `width`, else that of its drawbell (its `drawbell` id,
+//! else its `bell_type`, joined to `drawbells.name`), else `flow.default_opening_width`.
+//!
+//! # Periods and schedule
+//! Periods come from the periods table when one is given, else from the wide schedule's
+//! headers, else (long schedule alone) from the distinct period numbers of the schedule,
+//! one day each, with a warning. Duplicate (period, drawpoint) rows are summed.
+
+use std::collections::{HashMap, HashSet};
+use std::path::{Path, PathBuf};
+
+use crate::io::{
+    read_schedule_into, read_table_into, Collector, Problem, Problems, ScheduleForm, ScheduleTable,
+    Table,
+};
+use crate::model::{BlockModel, Drawpoints, Periods, Scenario, Scene, Schedule};
+use crate::schema::{TableSpec, BLOCK_MODEL, DRAWBELLS, DRAWPOINTS, PERIODS};
+
+/// An input file that went into a scene, for the run manifest.
+#[derive(Debug, Clone, PartialEq)]
+pub struct InputFile {
+    /// What the file is: `blocks`, `drawpoints`, `drawbells`, `periods` or `schedule`.
+    pub role: String,
+    /// Path as given in the scenario (absolute once the scenario is loaded from a file).
+    pub path: PathBuf,
+    /// SHA-256 of the file's bytes, lower-case hex.
+    pub sha256: String,
+    /// Number of data rows.
+    pub rows: usize,
+}
+
+/// A validated scene, with what it was made from.
+#[derive(Debug, Clone)]
+pub struct LoadedScene {
+    /// What the engine runs.
+    pub scene: Scene,
+    /// The input files and their hashes.
+    pub inputs: Vec<InputFile>,
+    /// Remarks that are not errors (ignored columns, defaulted widths, invented periods).
+    pub warnings: Vec<String>,
+}
+
+/// Default percolation coefficient k1 (summary §7.3).
+pub const DEFAULT_PERC_K1: f64 = 11.0;
+/// Default percolation coefficient k2 (summary §7.3).
+pub const DEFAULT_PERC_K2: f64 = 4.5;
+/// Default percolation variance-to-mean ratio.
+pub const DEFAULT_PERC_VMR: f64 = 0.5;
+/// Tensile strength as a share of UCS when neither it nor its Weibull parameters are given
+/// (MassFlow's default ratio).
+pub const TENSILE_UCS_RATIO: f64 = 0.1;
+/// Largest block grid (cells) accepted. A grid this size already takes 1 GiB of index; a
+/// larger one almost always means a stray coordinate.
+pub const MAX_GRID_CELLS: usize = 1 << 28;
+
+/// Reads, checks and joins every input of a scenario. See the module docs for the rules;
+/// every problem in every file is returned, each with its file, row, column and rule id.
+pub fn load_scene(sc: &Scenario) -> Result<LoadedScene, Problems> {
+    let mut l = Loader::default();
+    let i = &sc.inputs;
+    let blocks = l.read("blocks", &i.blocks, &BLOCK_MODEL);
+    let drawpoints = l.read("drawpoints", &i.drawpoints, &DRAWPOINTS);
+    let bells = i
+        .drawbells
+        .as_ref()
+        .map(|p| l.read("drawbells", p, &DRAWBELLS));
+    let periods = i.periods.as_ref().map(|p| l.read("periods", p, &PERIODS));
+    let schedule = l.read_schedule(&i.schedule);
+
+    let blocks = blocks.and_then(|t| l.block_model(&t));
+    // Ok(None): no drawbells table; Err: one was given but its columns could not be read.
+    let bells = match bells {
+        None => Ok(None),
+        Some(Some(t)) => l.drawbells(&t).map(Some).ok_or(()),
+        Some(None) => Err(()),
+    };
+    let drawpoints = drawpoints.and_then(|t| {
+        l.drawpoints(
+            &t,
+            bells.as_ref().ok().and_then(Option::as_ref),
+            bells.is_err(),
+            blocks.as_ref(),
+            sc.flow.default_opening_width,
+        )
+    });
+    let periods = match (periods, &schedule) {
+        (Some(t), s) => {
+            if let Some(s) = s.as_ref().filter(|s| s.form == ScheduleForm::Wide) {
+                l.warnings.push(format!(
+                    "{}: period names and lengths come from the periods table, not from the wide schedule's headers",
+                    s.file
+                ));
+            }
+            t.and_then(|t| l.periods(&t))
+        }
+        (None, Some(s)) => Some(l.periods_from_schedule(s)),
+        (None, None) => None,
+    };
+    let schedule = match (&schedule, &drawpoints, &periods) {
+        (Some(s), Some(d), Some(p)) => Some(l.schedule(s, d, p)),
+        _ => None,
+    };
+    let Loader {
+        problems,
+        inputs,
+        warnings,
+    } = l;
+    match (blocks, drawpoints, periods, schedule) {
+        (Some(blocks), Some(drawpoints), Some(periods), Some(schedule)) if problems.is_empty() => {
+            Ok(LoadedScene {
+                scene: Scene {
+                    blocks,
+                    drawpoints,
+                    periods,
+                    schedule,
+                },
+                inputs,
+                warnings,
+            })
+        }
+        _ => Err(problems.finish()),
+    }
+}
+
+#[derive(Default)]
+struct Loader {
+    problems: Collector,
+    inputs: Vec<InputFile>,
+    warnings: Vec<String>,
+}
+
+/// Whether `v` is a valid porosity (NaN: missing, already reported); otherwise the rule and
+/// message.
+fn porosity_problem(what: &str, v: f64) -> Option<(&'static str, String)> {
+    if v.is_nan() || (0.0..1.0).contains(&v) {
+        None
+    } else if (2.0..=100.0).contains(&v) {
+        // Values in (1, 2) would be porosities under 2 % as percentages, which caved rock
+        // never has: they are reported as plainly out of range.
+        Some((
+            "units-percent",
+            format!(
+                "{what} {v} is outside [0, 1): it looks like a percentage; divide by 100 ({})",
+                v / 100.0
+            ),
+        ))
+    } else {
+        Some(("porosity-range", format!("{what} {v} is outside [0, 1)")))
+    }
+}
+
+/// Γ(x) for x ≥ 0.5 by the Lanczos approximation (g = 7, n = 9; relative error ~1e-15).
+fn gamma(x: f64) -> f64 {
+    const G: f64 = 7.0;
+    const C: [f64; 9] = [
+        0.999_999_999_999_809_9,
+        676.520_368_121_885_1,
+        -1_259.139_216_722_402_8,
+        771.323_428_777_653_1,
+        -176.615_029_162_140_6,
+        12.507_343_278_686_905,
+        -0.138_571_095_265_720_12,
+        9.984_369_578_019_572e-6,
+        1.505_632_735_149_311_6e-7,
+    ];
+    let x = x - 1.0;
+    let t = x + G + 0.5;
+    let a = C
+        .iter()
+        .enumerate()
+        .skip(1)
+        .fold(C[0], |a, (i, c)| a + c / (x + i as f64));
+    (2.0 * std::f64::consts::PI).sqrt() * t.powf(x + 0.5) * (-t).exp() * a
+}
+
+/// Mean of a Weibull distribution with shape α and scale β: β Γ(1 + 1/α).
+fn weibull_mean(shape: f64, scale: f64) -> f64 {
+    scale * gamma(1.0 + 1.0 / shape)
+}
+
+/// The block size along one axis: the smallest positive spacing of distinct centre
+/// values. `Ok(None)` when the axis has a single value; `Err((a, b, size))` when centre `b`
+/// is not a whole number of blocks from the lowest centre `a`.
+fn axis_size(values: &[f64]) -> Result<Option<f64>, (f64, f64, f64)> {
+    let mut v: Vec<f64> = values.to_vec();
+    v.sort_by(f64::total_cmp);
+    let (Some(&lo), Some(&hi)) = (v.first(), v.last()) else {
+        return Ok(None);
+    };
+    let tol = 1e-9 * lo.abs().max(hi.abs()).max(1.0);
+    v.dedup_by(|b, a| (*b - *a).abs() <= tol);
+    let size = v
+        .windows(2)
+        .map(|w| w[1] - w[0])
+        .fold(f64::INFINITY, f64::min);
+    if !size.is_finite() {
+        return Ok(None);
+    }
+    for &c in &v {
+        let k = (c - lo) / size;
+        if (k - k.round()).abs() > 1e-3 {
+            return Err((lo, c, size));
+        }
+    }
+    Ok(Some(size))
+}
+
+impl Loader {
+    fn problem(
+        &mut self,
+        file: &str,
+        row: Option<usize>,
+        column: Option<&str>,
+        rule: &'static str,
+        message: String,
+    ) {
+        self.problems
+            .push(Problem::at(file, row, column, rule, message));
+    }
+
+    fn input(&mut self, role: &str, path: &Path, sha256: &str, rows: usize) {
+        self.inputs.push(InputFile {
+            role: role.into(),
+            path: path.to_path_buf(),
+            sha256: sha256.into(),
+            rows,
+        });
+    }
+
+    /// Reads one table, recording its problems; None when not even a header could be read.
+    fn read(&mut self, role: &str, path: &Path, spec: &TableSpec) -> Option<Table> {
+        if path.as_os_str().is_empty() {
+            let message = format!("inputs.{role} is not set");
+            self.problems
+                .push(Problem::file("scenario", "no-input", message));
+            return None;
+        }
+        let t = read_table_into(path, spec, &mut self.problems)?;
+        self.input(role, path, &t.sha256, t.len());
+        self.warnings.extend(t.warnings.iter().cloned());
+        Some(t)
+    }
+
+    fn read_schedule(&mut self, path: &Path) -> Option<ScheduleTable> {
+        if path.as_os_str().is_empty() {
+            let message = "inputs.schedule is not set";
+            self.problems
+                .push(Problem::file("scenario", "no-input", message));
+            return None;
+        }
+        let s = read_schedule_into(path, &mut self.problems)?;
+        self.input("schedule", path, &s.sha256, s.rows);
+        self.warnings.extend(s.warnings.iter().cloned());
+        Some(s)
+    }
+
+    /// The block model; None when no grid can be built (the other checks still run).
+    fn block_model(&mut self, t: &Table) -> Option<BlockModel> {
+        let file = t.file.as_str();
+        let n = t.len();
+        let req = |name: &str| t.f64(name).filter(|v| v.len() == n);
+        let (Some(x), Some(y), Some(z), Some(density), Some(n0), Some(n1), Some(phi), Some(ids)) = (
+            req("x"),
+            req("y"),
+            req("z"),
+            req("solids_density"),
+            req("porosity"),
+            req("max_porosity"),
+            req("friction_angle"),
+            t.i64("block_id").filter(|v| v.len() == n),
+        ) else {
+            return None;
+        };
+        let opt = |name: &str| t.f64(name).filter(|v| v.len() == n);
+        let at = |i: usize| Some(t.row(i));
+        let mut m = BlockModel {
+            x: x.to_vec(),
+            y: y.to_vec(),
+            z: z.to_vec(),
+            ..BlockModel::default()
+        };
+
+        let mut first_row: HashMap<i64, usize> = HashMap::with_capacity(n);
+        for (i, id) in ids.iter().enumerate() {
+            let Some(id) = *id else {
+                m.id.push(0); // reported by the reader
+                continue;
+            };
+            if let Some(&j) = first_row.get(&id) {
+                self.problem(
+                    file,
+                    at(i),
+                    Some(t.header("block_id")),
+                    "duplicate-id",
+                    format!("block_id {id} is already used at row {}", t.row(j)),
+                );
+            } else {
+                first_row.insert(id, i);
+            }
+            m.id.push(id);
+        }
+        m.cave_period = match t.i64("cave_period") {
+            Some(c) => c.iter().map(|c| c.unwrap_or(0)).collect(),
+            None => vec![0; n],
+        };
+
+        let (hd, h0, h1, hphi) = (
+            t.header("solids_density"),
+            t.header("porosity"),
+            t.header("max_porosity"),
+            t.header("friction_angle"),
+        );
+        for i in 0..n {
+            let d = density[i];
+            if d <= 0.0 {
+                self.problem(
+                    file,
+                    at(i),
+                    Some(hd),
+                    "not-positive",
+                    format!("solids density {d} t/m³ must be positive"),
+                );
+            } else if d > 20.0 {
+                self.problem(file, at(i), Some(hd), "units-kg-m3", format!("solids density {d} t/m³ is not plausible: it looks like kg/m³; divide by 1000 ({} t/m³)", d / 1000.0));
+            }
+            let p0 = porosity_problem("porosity", n0[i]);
+            let p1 = porosity_problem("max_porosity", n1[i]);
+            let ok = p0.is_none() && p1.is_none();
+            for (p, h) in [(p0, h0), (p1, h1)] {
+                if let Some((rule, msg)) = p {
+                    self.problem(file, at(i), Some(h), rule, msg);
+                }
+            }
+            if ok && n1[i] < n0[i] {
+                self.problem(file, at(i), Some(h1), "n1-below-n0", format!("max_porosity {} is below porosity {} (the dilated porosity n1 must be at least n0)", n1[i], n0[i]));
+            }
+            if phi[i] <= 0.0 || phi[i] >= 90.0 {
+                self.problem(
+                    file,
+                    at(i),
+                    Some(hphi),
+                    "friction-range",
+                    format!("friction angle {}° is outside (0, 90)", phi[i]),
+                );
+            }
+        }
+        m.density = density.to_vec();
+        m.n0 = n0.to_vec();
+        m.n1 = n1.to_vec();
+        m.friction = phi.to_vec();
+
+        // Positive-where-given columns.
+        for name in [
+            "frag_size",
+            "frag_shape",
+            "frag_scale",
+            "tensile_strength",
+            "tensile_shape",
+            "tensile_scale",
+            "ucs",
+        ] {
+            if let Some(v) = opt(name) {
+                for (i, &x) in v.iter().enumerate() {
+                    if x <= 0.0 {
+                        self.problem(
+                            file,
+                            at(i),
+                            Some(t.header(name)),
+                            "not-positive",
+                            format!("{name} {x} must be positive"),
+                        );
+                    }
+                }
+            }
+        }
+        let nan = vec![f64::NAN; n];
+        let col = |name: &str| opt(name).unwrap_or(&nan);
+        let (size, shape, scale) = (col("frag_size"), col("frag_shape"), col("frag_scale"));
+        if !(t.has("frag_size") || (t.has("frag_shape") && t.has("frag_scale"))) {
+            self.problem(file, None, Some("frag_size"), "missing-column", "the block model needs frag_size, or frag_shape and frag_scale (MassFlow PriFragA and PriFragB)".into());
+        } else {
+            for i in 0..n {
+                let f = if !size[i].is_nan() {
+                    size[i]
+                } else if !shape[i].is_nan() && !scale[i].is_nan() {
+                    weibull_mean(shape[i], scale[i])
+                } else if ["frag_size", "frag_shape", "frag_scale"]
+                    .iter()
+                    .any(|c| t.bad(c, i))
+                {
+                    f64::NAN // reported by the reader
+                } else {
+                    let h = t.header(if t.has("frag_size") {
+                        "frag_size"
+                    } else {
+                        "frag_shape"
+                    });
+                    self.problem(
+                        file,
+                        at(i),
+                        Some(h),
+                        "missing-value",
+                        "no fragment size: give frag_size, or both frag_shape and frag_scale"
+                            .into(),
+                    );
+                    f64::NAN
+                };
+                if size[i].is_nan() && shape[i] > 0.0 && scale[i] > 0.0 && !f.is_finite() {
+                    self.problem(
+                        file,
+                        at(i),
+                        Some(t.header("frag_shape")),
+                        "not-finite",
+                        format!(
+                            "the Weibull mean fragment size overflows for shape {}",
+                            shape[i]
+                        ),
+                    );
+                }
+                m.frag.push(f);
+            }
+        }
+        m.frag_shape = shape.to_vec();
+        m.frag_scale = scale.to_vec();
+        let (ts, tsh, tsc, ucs) = (
+            col("tensile_strength"),
+            col("tensile_shape"),
+            col("tensile_scale"),
+            col("ucs"),
+        );
+        m.tensile = (0..n)
+            .map(|i| {
+                if !ts[i].is_nan() {
+                    ts[i]
+                } else if !tsh[i].is_nan() && !tsc[i].is_nan() {
+                    weibull_mean(tsh[i], tsc[i])
+                } else {
+                    TENSILE_UCS_RATIO * ucs[i]
+                }
+            })
+            .collect();
+        m.ucs = ucs.to_vec();
+        let mut perc = |name: &str, default: f64| -> Vec<f64> {
+            let v: Vec<f64> = col(name)
+                .iter()
+                .map(|&x| if x.is_nan() { default } else { x })
+                .collect();
+            for (i, &x) in v.iter().enumerate() {
+                if x < 0.0 {
+                    self.problem(
+                        file,
+                        at(i),
+                        Some(t.header(name)),
+                        "negative",
+                        format!("{name} {x} must not be negative"),
+                    );
+                }
+            }
+            v
+        };
+        m.perc_k1 = perc("perc_k1", DEFAULT_PERC_K1);
+        m.perc_k2 = perc("perc_k2", DEFAULT_PERC_K2);
+        m.perc_vmr = perc("perc_vmr", DEFAULT_PERC_VMR);
+
+        match t.str("lithology") {
+            Some(lith) => {
+                let mut code: HashMap<&str, u16> = HashMap::new();
+                for (i, name) in lith.iter().enumerate() {
+                    if name.is_empty() {
+                        if !t.bad("lithology", i) {
+                            self.problem(
+                                file,
+                                at(i),
+                                Some(t.header("lithology")),
+                                "missing-value",
+                                "the lithology is empty".into(),
+                            );
+                        }
+                        m.lithology.push(0);
+                        continue;
+                    }
+                    let next = code.len();
+                    let c = match code.get(name.as_str()) {
+                        Some(&c) => c,
+                        None => match u16::try_from(next) {
+                            Ok(c) => {
+                                code.insert(name.as_str(), c);
+                                m.lithology_names.push(name.clone());
+                                c
+                            }
+                            Err(_) => {
+                                self.problem(
+                                    file,
+                                    at(i),
+                                    Some(t.header("lithology")),
+                                    "too-many-lithologies",
+                                    format!(
+                                        "more than {} distinct lithologies",
+                                        u16::MAX as usize + 1
+                                    ),
+                                );
+                                0
+                            }
+                        },
+                    };
+                    m.lithology.push(c);
+                }
+            }
+            None => {
+                m.lithology = vec![0; n];
+                m.lithology_names = vec!["default".into()];
+            }
+        }
+
+        for g in &t.extra {
+            for (i, &v) in g.values.iter().enumerate() {
+                if v.is_nan() && !t.bad(&g.name, i) {
+                    self.problem(
+                        file,
+                        at(i),
+                        Some(&g.name),
+                        "missing-value",
+                        format!("grade {} is empty", g.name),
+                    );
+                } else if v < 0.0 {
+                    self.problem(
+                        file,
+                        at(i),
+                        Some(&g.name),
+                        "negative",
+                        format!("grade {} {v} % must not be negative", g.name),
+                    );
+                }
+            }
+            m.grade_names.push(g.name.clone());
+            m.grades.push(g.values.clone());
+        }
+
+        self.grid(t, &mut m).then_some(m)
+    }
+
+    /// Infers the block size and builds the grid index; false when no grid can be made.
+    fn grid(&mut self, t: &Table, m: &mut BlockModel) -> bool {
+        let file = t.file.as_str();
+        let axes = ["x", "y", "z"];
+        if [&m.x, &m.y, &m.z]
+            .iter()
+            .any(|v| v.iter().any(|c| c.is_nan()))
+        {
+            return false; // a centre the reader could not read: no grid to check against
+        }
+        let mut size = [None; 3];
+        for (a, values) in [&m.x, &m.y, &m.z].into_iter().enumerate() {
+            match axis_size(values) {
+                Ok(s) => size[a] = s,
+                Err((lo, c, s)) => {
+                    self.problem(file, None, Some(t.header(axes[a])), "mixed-block-size", format!(
+                        "{} centres {lo} and {c} are {} m apart, not a whole number of {s} m blocks (the smallest spacing of distinct centres): blocks must all be one size per axis; regularise a sub-blocked model first",
+                        axes[a], c - lo
+                    ));
+                    size[a] = Some(s);
+                }
+            }
+        }
+        let Some(fallback) = size.iter().flatten().copied().reduce(f64::min) else {
+            self.problem(
+                file,
+                None,
+                None,
+                "block-size",
+                "cannot infer the block size: every block has the same centre".into(),
+            );
+            return false;
+        };
+        for a in 0..3 {
+            if size[a].is_none() {
+                self.warnings.push(format!("{file}: all blocks share one {} centre; the block size along {} is taken as {fallback} m", axes[a], axes[a]));
+            }
+            m.size[a] = size[a].unwrap_or(fallback);
+        }
+        let mut span = [0.0f64; 3];
+        let mut range = [(0.0, 0.0); 3];
+        for (a, values) in [&m.x, &m.y, &m.z].into_iter().enumerate() {
+            let lo = values.iter().copied().fold(f64::INFINITY, f64::min);
+            let hi = values.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+            span[a] = ((hi - lo) / m.size[a]).round() + 1.0;
+            range[a] = (lo, hi);
+        }
+        if span.iter().product::<f64>() > MAX_GRID_CELLS as f64 {
+            let a = (0..3).fold(0, |best, a| if span[a] > span[best] { a } else { best });
+            let (lo, hi) = range[a];
+            self.problem(file, None, Some(t.header(axes[a])), "grid-too-large", format!(
+                "the block grid would have {:.3e} cells, more than {MAX_GRID_CELLS} ({} spans {lo} to {hi} in {} m blocks): look for a stray coordinate",
+                span.iter().product::<f64>(), axes[a], m.size[a]
+            ));
+            return false;
+        }
+        for (b, reason) in m.build_index() {
+            // build_index words its reasons "block centre x=… is off the … grid" and
+            // "… occupies the same cell as row …".
+            let row = Some(t.row(b));
+            if reason.contains("same cell") {
+                self.problem(file, row, None, "duplicate-cell", reason);
+            } else {
+                let axis = axes
+                    .iter()
+                    .find(|a| reason.starts_with(&format!("block centre {a}=")))
+                    .copied()
+                    .unwrap_or("x");
+                self.problem(file, row, Some(t.header(axis)), "off-grid", reason);
+            }
+        }
+        true
+    }
+
+    /// Drawbell name → width; None when the name or width column is missing.
+    fn drawbells(&mut self, t: &Table) -> Option<HashMap<String, f64>> {
+        let mut widths = HashMap::new();
+        let (names, width) = (t.str("name")?, t.f64("width")?);
+        for (i, (name, &w)) in names.iter().zip(width).enumerate() {
+            if w <= 0.0 {
+                self.problem(
+                    &t.file,
+                    Some(t.row(i)),
+                    Some(t.header("width")),
+                    "not-positive",
+                    format!("drawbell width {w} m must be positive"),
+                );
+            }
+            if !name.is_empty() && widths.insert(name.clone(), w).is_some() {
+                self.problem(
+                    &t.file,
+                    Some(t.row(i)),
+                    Some(t.header("name")),
+                    "duplicate-id",
+                    format!("drawbell `{name}` appears more than once"),
+                );
+            }
+        }
+        Some(widths)
+    }
+
+    /// Drawpoints with their opening widths; None when a required column is missing.
+    /// `bells_broken`: a drawbells table was given but could not be read, so drawbell joins
+    /// are not checked.
+    fn drawpoints(
+        &mut self,
+        t: &Table,
+        bells: Option<&HashMap<String, f64>>,
+        bells_broken: bool,
+        blocks: Option<&BlockModel>,
+        default_width: f64,
+    ) -> Option<Drawpoints> {
+        let file = t.file.as_str();
+        let mut d = Drawpoints::default();
+        let (names, x, y, z) = (t.str("name")?, t.f64("x")?, t.f64("y")?, t.f64("z")?);
+        let empty = vec![String::new(); t.len()];
+        let nan = vec![f64::NAN; t.len()];
+        let width = t.f64("width").unwrap_or(&nan);
+        let (bell, bell_type) = (
+            t.str("drawbell").unwrap_or(&empty),
+            t.str("bell_type").unwrap_or(&empty),
+        );
+        let zone = t.str("zone").unwrap_or(&empty);
+        let mut seen: HashMap<&str, usize> = HashMap::new();
+        let mut defaulted = 0;
+        for i in 0..names.len().min(x.len()).min(y.len()).min(z.len()) {
+            let row = Some(t.row(i));
+            let name = names[i].as_str();
+            if name.is_empty() {
+                // Reported by the reader.
+            } else if let Some(&j) = seen.get(name) {
+                self.problem(
+                    file,
+                    row,
+                    Some(t.header("name")),
+                    "duplicate-id",
+                    format!("drawpoint `{name}` is already defined at row {}", t.row(j)),
+                );
+            } else {
+                seen.insert(name, i);
+            }
+            let keys = [(bell.get(i), "drawbell"), (bell_type.get(i), "bell_type")];
+            let keys: Vec<(&str, &str)> = keys
+                .iter()
+                .filter_map(|(k, c)| k.filter(|k| !k.is_empty()).map(|k| (k.as_str(), *c)))
+                .collect();
+            let w = match width
+                .get(i)
+                .copied()
+                .filter(|w| !w.is_nan() || t.bad("width", i))
+            {
+                Some(w) => {
+                    if w <= 0.0 {
+                        self.problem(
+                            file,
+                            row,
+                            Some(t.header("width")),
+                            "not-positive",
+                            format!("opening width {w} m must be positive"),
+                        );
+                    }
+                    w
+                }
+                None => match bells {
+                    Some(b) if !keys.is_empty() => match keys.iter().find_map(|(k, _)| b.get(*k)) {
+                        Some(&w) => w,
+                        None => {
+                            let named: Vec<String> = keys
+                                .iter()
+                                .map(|(k, c)| format!("{} `{k}`", t.header(c)))
+                                .collect();
+                            let column = t.header(keys.first().map_or("drawbell", |k| k.1));
+                            self.problem(
+                                file,
+                                row,
+                                Some(column),
+                                "unknown-drawbell",
+                                format!("{} is not in the drawbells table", named.join(" / ")),
+                            );
+                            default_width
+                        }
+                    },
+                    _ => {
+                        if !bells_broken {
+                            defaulted += 1;
+                        }
+                        default_width
+                    }
+                },
+            };
+            let located = !(x[i].is_nan() || y[i].is_nan() || z[i].is_nan());
+            if let Some(b) = blocks.filter(|b| located && !b.index.is_empty()) {
+                let (lo, hi) = (b.origin, b.max_corner());
+                let dz = b.size[2];
+                if !(x[i] >= lo[0] && x[i] <= hi[0] && y[i] >= lo[1] && y[i] <= hi[1]) {
+                    self.problem(file, row, Some(t.header("x")), "outside-model", format!(
+                        "drawpoint `{name}` at ({}, {}) lies outside the block grid, which spans x {}..{} and y {}..{}",
+                        x[i], y[i], lo[0], hi[0], lo[1], hi[1]
+                    ));
+                } else if z[i] < lo[2] - dz || z[i] > hi[2] + dz {
+                    self.problem(file, row, Some(t.header("z")), "outside-model", format!(
+                        "drawpoint `{name}` at z {} is more than one block height ({dz} m) outside the block grid, which spans z {}..{}",
+                        z[i], lo[2], hi[2]
+                    ));
+                }
+            }
+            d.name.push(name.to_string());
+            d.x.push(x[i]);
+            d.y.push(y[i]);
+            d.z.push(z[i]);
+            d.width.push(w);
+            d.zone.push(zone.get(i).cloned().unwrap_or_default());
+        }
+        if defaulted > 0 {
+            self.warnings.push(format!("{file}: {defaulted} drawpoint(s) have no opening width (no width column value and no drawbell width); they use flow.default_opening_width = {default_width} m"));
+        }
+        Some(d)
+    }
+
+    /// Periods from a periods table; None when a required column is missing.
+    fn periods(&mut self, t: &Table) -> Option<Periods> {
+        let file = t.file.as_str();
+        let mut p = Periods::default();
+        let (ids, days) = (t.i64("period")?, t.f64("days")?);
+        let names = t.str("name");
+        let mut seen = HashSet::new();
+        for (i, (id, &d)) in ids.iter().zip(days).enumerate() {
+            let row = Some(t.row(i));
+            let Some(id) = *id else {
+                continue; // reported by the reader
+            };
+            if !seen.insert(id) {
+                self.problem(
+                    file,
+                    row,
+                    Some(t.header("period")),
+                    "duplicate-id",
+                    format!("period {id} appears more than once"),
+                );
+            } else if let Some(&prev) = p.id.last() {
+                if id <= prev {
+                    self.problem(file, row, Some(t.header("period")), "period-order", format!("period {id} follows period {prev}: period numbers must strictly increase"));
+                }
+            }
+            if d <= 0.0 {
+                self.problem(
+                    file,
+                    row,
+                    Some(t.header("days")),
+                    "not-positive",
+                    format!("period length {d} days must be positive"),
+                );
+            }
+            let name = names
+                .and_then(|n| n.get(i))
+                .filter(|n| !n.is_empty())
+                .cloned()
+                .unwrap_or_else(|| id.to_string());
+            p.id.push(id);
+            p.name.push(name);
+            p.days.push(d);
+        }
+        Some(p)
+    }
+
+    /// Periods when no periods table is given: the wide form's headers, or the long form's
+    /// distinct period numbers at one day each.
+    fn periods_from_schedule(&mut self, s: &ScheduleTable) -> Periods {
+        if let Some(p) = &s.periods {
+            return p.clone();
+        }
+        let mut ids: Vec<i64> = s.entries.iter().map(|e| e.period).collect();
+        ids.sort_unstable();
+        ids.dedup();
+        self.warnings.push(format!(
+            "{}: no periods table: the schedule's {} distinct period numbers are used, each one day long",
+            s.file,
+            ids.len()
+        ));
+        Periods {
+            name: ids.iter().map(|i| i.to_string()).collect(),
+            days: vec![1.0; ids.len()],
+            id: ids,
+        }
+    }
+
+    /// The dense schedule; unknown drawpoints and periods and negative tonnes are errors.
+    fn schedule(&mut self, s: &ScheduleTable, d: &Drawpoints, p: &Periods) -> Schedule {
+        let file = s.file.as_str();
+        let dp: HashMap<&str, usize> = d
+            .name
+            .iter()
+            .enumerate()
+            .map(|(i, n)| (n.as_str(), i))
+            .collect();
+        let pi: HashMap<i64, usize> = p.id.iter().enumerate().map(|(i, &id)| (id, i)).collect();
+        let mut out = Schedule {
+            n_drawpoints: d.len(),
+            tonnes: vec![0.0; d.len() * p.len()],
+        };
+        let mut cells = HashSet::new();
+        let mut summed = 0usize;
+        let mut reported_row = None;
+        for e in &s.entries {
+            let row = Some(e.row);
+            if e.tonnes < 0.0 {
+                self.problem(
+                    file,
+                    row,
+                    Some(s.tonnes_header(e)),
+                    "negative",
+                    format!("{} tonnes must not be negative", e.tonnes),
+                );
+            }
+            let di = dp.get(e.drawpoint.as_str()).copied();
+            if di.is_none() && reported_row != Some(e.row) {
+                reported_row = Some(e.row);
+                self.problem(
+                    file,
+                    row,
+                    Some(&s.drawpoint_column),
+                    "unknown-drawpoint",
+                    format!("drawpoint `{}` is not in the drawpoints table", e.drawpoint),
+                );
+            }
+            let pk = pi.get(&e.period).copied();
+            if pk.is_none() {
+                self.problem(
+                    file,
+                    row,
+                    Some(s.period_header(e)),
+                    "unknown-period",
+                    format!("period {} is not in the periods table", e.period),
+                );
+            }
+            if let (Some(di), Some(pk)) = (di, pk) {
+                if !cells.insert((pk, di)) {
+                    summed += 1;
+                }
+                if let Some(t) = out.tonnes.get_mut(pk * d.len() + di) {
+                    *t += e.tonnes;
+                }
+            }
+        }
+        if summed > 0 {
+            self.warnings.push(format!(
+                "{file}: {summed} repeated (period, drawpoint) row(s) were summed"
+            ));
+        }
+        out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn gamma_matches_known_values() {
+        assert!((gamma(1.0) - 1.0).abs() < 1e-13);
+        assert!((gamma(5.0) - 24.0).abs() < 1e-11);
+        assert!((gamma(1.5) - std::f64::consts::PI.sqrt() / 2.0).abs() < 1e-13);
+        assert!((gamma(0.5) - std::f64::consts::PI.sqrt()).abs() < 1e-12);
+    }
+
+    #[test]
+    fn weibull_mean_of_shape_one_is_the_scale() {
+        // Shape 1 is the exponential distribution, whose mean is the scale.
+        assert!((weibull_mean(1.0, 0.2) - 0.2).abs() < 1e-14);
+        // Shape 2: β √π / 2.
+        assert!((weibull_mean(2.0, 1.0) - std::f64::consts::PI.sqrt() / 2.0).abs() < 1e-13);
+    }
+
+    #[test]
+    fn axis_size_finds_spacing_and_mixed_sizes() {
+        assert_eq!(axis_size(&[5.0, 15.0, 10.0, 5.0, 30.0]), Ok(Some(5.0)));
+        assert_eq!(axis_size(&[7.0, 7.0]), Ok(None));
+        assert_eq!(axis_size(&[0.0, 5.0, 12.5]), Err((0.0, 12.5, 5.0)));
+        assert_eq!(axis_size(&[]), Ok(None));
+    }
+
+    #[test]
+    fn porosity_rules() {
+        assert_eq!(porosity_problem("porosity", 0.4), None);
+        assert_eq!(
+            porosity_problem("porosity", 1.3).map(|p| p.0),
+            Some("porosity-range")
+        );
+        assert_eq!(
+            porosity_problem("porosity", 45.0).map(|p| p.0),
+            Some("units-percent")
+        );
+        assert_eq!(
+            porosity_problem("porosity", -0.1).map(|p| p.0),
+            Some("porosity-range")
+        );
+        assert_eq!(
+            porosity_problem("porosity", 1.0).map(|p| p.0),
+            Some("porosity-range")
+        );
+    }
+}
