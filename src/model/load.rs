@@ -1,10 +1,20 @@
 //! Loading a scene: every input table read, typed, checked and joined into a [`Scene`].
 //!
 //! All inputs are read and checked even when an earlier one fails, so one run reports
-//! every problem in every file. Checks that join two tables (drawpoints to the block grid
-//! and to drawbells, the schedule to drawpoints and periods) are skipped when a table they
-//! need could not be read, so that one broken file does not bury its own problems under
-//! consequences in others.
+//! every problem in every file. A cell the reader could not type is reported once, as
+//! read, and is then a missing value that the rules below skip. Checks that join two tables
+//! (drawpoints to the block grid and to drawbells, the schedule to drawpoints and periods)
+//! are skipped when a table they need lacks a required column or its grid, so that one
+//! broken file does not bury its own problems under consequences in others.
+//!
+//! # Rules
+//! Densities must be positive (a density above 20 t/m³ is `units-kg-m3`); porosity and
+//! max_porosity lie in [0, 1) (a value in [2, 100] is `units-percent`; values in (1, 2)
+//! would be porosities under 2 % and are plainly `porosity-range`), with max_porosity ≥
+//! porosity (`n1-below-n0`); the friction angle lies in (0, 90); fragment sizes, Weibull
+//! parameters, strengths, opening widths and period lengths are positive; grades,
+//! percolation coefficients and tonnes are not negative. A drawpoint must lie within the
+//! grid's horizontal extent and no more than one block height below or above it.
 //!
 //! # Block model
 //! - Block size per axis: the smallest positive spacing between distinct centre values.

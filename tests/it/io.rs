@@ -1345,3 +1345,32 @@ fn every_file_is_checked_in_one_pass() {
     assert_eq!(p.0.len(), 4, "{p}");
     assert_eq!(p.to_string().lines().count(), 4);
 }
+
+#[test]
+fn reader_and_model_problems_come_together() {
+    // A cell the reader cannot type does not hide the model rules of the other cells, and
+    // is not reported a second time by them.
+    let p = edited(|f| {
+        set(&mut f.blocks, 1, "friction_angle", "steep");
+        set(&mut f.blocks, 2, "porosity", "45");
+        set(&mut f.blocks, 3, "frag_size", "fine");
+        set(&mut f.blocks, 4, "cu", "n/a");
+        set(&mut f.drawpoints, 1, "x", "far");
+        set(&mut f.drawpoints, 2, "x", "-50");
+    });
+    expect(
+        &p,
+        "blocks.csv",
+        Some(1),
+        Some("friction_angle"),
+        "mistyped",
+    );
+    expect(&p, "blocks.csv", Some(2), Some("porosity"), "units-percent");
+    expect(&p, "blocks.csv", Some(3), Some("frag_size"), "mistyped");
+    expect(&p, "blocks.csv", Some(4), Some("cu"), "mistyped");
+    expect(&p, "drawpoints.csv", Some(1), Some("x"), "mistyped");
+    expect(&p, "drawpoints.csv", Some(2), Some("x"), "outside-model");
+    assert!(!p.has("missing-value"), "{p}");
+    assert!(!p.has("friction-range"), "{p}");
+    assert_eq!(p.0.len(), 6, "{p}");
+}
