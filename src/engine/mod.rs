@@ -1,3 +1,564 @@
-//! The REBOP flow engine. One module per mechanism.
+//! The REBOP flow engine: one module per mechanism.
+//!
+//! - [`imz`]: IMZ growth by the r-law (summary §3.3).
+//! - [`markers`]: the marker lattice and marker motion (summary §3.3), superposition of
+//!   overlapping IMZs (summary §4.2).
+//! - [`resolution`]: the automatic choice of h, marker spacing and draw increment.
+//!
+//! # One period
+//! Each period's schedule is drawn in steps that interleave the drawpoints (concurrent
+//! draw is the limit of small steps; successive draw is the order of the periods). A step:
+//! 1. snapshot every IMZ's geometry (so parallel updates read a fixed state);
+//! 2. grow the drawing IMZs in parallel (each passes its void up in cycles);
+//! 3. engulf the lattice sites the grown disks now cover (stagnant → moving markers);
+//! 4. one parallel pass over the moving markers, summing the motion of every drawing IMZ
+//!    that contains each (superposition); markers leaving the lowest disk are drawn.
+//!
+//! # Mass balance
+//! Drawn markers are discrete, so the marker mass drawn in a period differs from the
+//! schedule. Per drawpoint and period the credited tonnes are the marker tonnes times a
+//! correction factor c = target / marker tonnes bounded to [0.1, 2] (MassFlow's bounds),
+//! where target = scheduled + the shortfall carried from earlier periods. What the bounded
+//! factor cannot credit is reported as `shortfall_tonnes` and carried forward, so over a
+//! run the credited tonnes equal the schedule up to the final carry, which is reported.
 
+pub mod imz;
+pub mod markers;
+pub mod resolution;
 pub mod result;
+
+use rayon::prelude::*;
+
+use crate::model::{Scenario, Scene};
+use imz::{DiskMotion, Ground, Imz, ImzGeom, ImzGrid, ImzParams, Mobilised};
+use markers::{DrawnMarkers, Lattice, Markers, MotionField};
+pub use result::*;
+
+/// Bounds of the mass-correction factor (MassFlow's).
+pub const CORRECTION_BOUNDS: (f64, f64) = (0.1, 2.0);
+
+/// Engine errors (bad settings that validation cannot see).
+#[derive(Debug, thiserror::Error)]
+pub enum EngineError {
+    /// The lattice would not fit in memory.
+    #[error("marker spacing {spacing} m gives {sites} lattice sites; more than {limit}. Increase resolution.marker_spacing")]
+    TooManySites {
+        /// Spacing.
+        spacing: f64,
+        /// Sites.
+        sites: usize,
+        /// Limit.
+        limit: usize,
+    },
+}
+
+/// Largest lattice the engine accepts (one byte of state per site).
+pub const MAX_SITES: usize = 2_000_000_000;
+
+/// Per-drawpoint accumulators for the period being drawn.
+#[derive(Debug, Clone, Default)]
+struct Tally {
+    mass: f64,
+    count: i64,
+    grade: Vec<f64>,
+    lith: Vec<f64>,
+    origin_z: f64,
+    frag: f64,
+    fines: f64,
+    waste: f64,
+}
+
+/// The engine's state between steps. Create with [`Engine::new`], drive with
+/// [`Engine::run`].
+pub struct Engine<'a> {
+    scene: &'a Scene,
+    scenario: &'a Scenario,
+    /// Resolution in use.
+    pub resolution: ResolvedResolution,
+    params: ImzParams,
+    lattice: Lattice,
+    marker_mass: Vec<f64>,
+    engulfed: Vec<bool>,
+    /// One IMZ per drawpoint.
+    pub imzs: Vec<Imz>,
+    /// Moving markers.
+    pub markers: Markers,
+    /// Drawn markers.
+    pub drawn: DrawnMarkers,
+    carry: Vec<f64>,
+    cum: Vec<f64>,
+    tally: Vec<Tally>,
+    hod_density_area: Vec<f64>,
+    waste: Vec<bool>,
+    fines_frac: Vec<f64>,
+    extent: ([f64; 2], [f64; 2]),
+    out: RunOutput,
+}
+
+impl<'a> Engine<'a> {
+    /// Sets up the lattice and one IMZ per drawpoint.
+    pub fn new(scene: &'a Scene, scenario: &'a Scenario) -> Result<Engine<'a>, EngineError> {
+        let bm = &scene.blocks;
+        let res = resolution::resolve(scene, scenario);
+        let lattice = Lattice::new(bm, res.marker_spacing);
+        if lattice.len() > MAX_SITES {
+            return Err(EngineError::TooManySites { spacing: res.marker_spacing, sites: lattice.len(), limit: MAX_SITES });
+        }
+        let max = bm.max_corner();
+        let diag = ((max[0] - bm.origin[0]).powi(2) + (max[1] - bm.origin[1]).powi(2)).sqrt();
+        let params = ImzParams {
+            q: scenario.flow.q,
+            shear_band_factor: scenario.flow.shear_band_factor,
+            min_jump: scenario.flow.min_porosity_jump,
+            resample: 0.5 * res.marker_spacing,
+            r_cap: diag,
+        };
+        let dp = &scene.drawpoints;
+        let imzs = (0..dp.len())
+            .map(|d| Imz::new(d, dp.x[d], dp.y[d], dp.z[d], res.layer_thickness, dp.width[d]))
+            .collect();
+        let n_dp = dp.len();
+        let tally = Tally { grade: vec![0.0; bm.grades.len()], lith: vec![0.0; bm.lithology_names.len()], ..Default::default() };
+        let mut out = RunOutput { resolution: res, ..Default::default() };
+        out.extraction.grades = vec![Vec::new(); bm.grades.len()];
+        out.extraction.lithology = vec![Vec::new(); bm.lithology_names.len()];
+        Ok(Engine {
+            scene,
+            scenario,
+            resolution: res,
+            params,
+            lattice,
+            marker_mass: lattice.marker_masses(bm),
+            engulfed: vec![false; lattice.len()],
+            imzs,
+            markers: Markers::default(),
+            drawn: DrawnMarkers::default(),
+            carry: vec![0.0; n_dp],
+            cum: vec![0.0; n_dp],
+            tally: vec![tally; n_dp],
+            hod_density_area: tributary(scene),
+            waste: waste_blocks(scene, scenario),
+            fines_frac: fines_fractions(scene, scenario.outputs.fines_cutoff),
+            extent: ([bm.origin[0], bm.origin[1]], [max[0] - bm.origin[0], max[1] - bm.origin[1]]),
+            out,
+        })
+    }
+
+    /// Runs every period; `progress(done, total)` is called after each period.
+    pub fn run(mut self, progress: &mut dyn FnMut(usize, usize)) -> RunOutput {
+        let n = self.scene.periods.len();
+        for p in 0..n {
+            self.run_period(p);
+            progress(p + 1, n);
+        }
+        self.finish()
+    }
+
+    fn grid_cell(&self) -> f64 {
+        let bm = &self.scene.blocks;
+        bm.size[0].min(bm.size[1]).max(self.resolution.marker_spacing)
+    }
+
+    /// Draws period index `p`.
+    pub fn run_period(&mut self, p: usize) {
+        let scene = self.scene;
+        let period = scene.periods.id[p];
+        let bm = &scene.blocks;
+        if p == 0 || bm.cave_period.iter().any(|&c| c == period) {
+            // Newly caved ground: perimeters and engulfment must be looked at again.
+            for imz in &mut self.imzs {
+                imz.r_engulfed.iter_mut().for_each(|r| *r = 0.0);
+                imz.stagnant.iter_mut().for_each(|s| s.sampled_at = f64::NAN);
+            }
+        }
+        self.refresh_mobilised();
+        let row = scene.schedule.period(p);
+        let inc = self.resolution.draw_increment;
+        let max_t = row.iter().cloned().fold(0.0, f64::max);
+        let steps = ((max_t / inc).ceil() as usize).max(1);
+        let drawing: Vec<usize> = (0..row.len())
+            .filter(|&d| row[d] > 0.0)
+            .filter(|&d| {
+                let g = &self.imzs[d].geom;
+                let ok = bm.locate([g.x, g.y, g.z0 + 0.5 * g.h]).is_some_and(|b| bm.flowable(b, period));
+                if !ok {
+                    self.out.warnings.push(format!(
+                        "period {period}: drawpoint {} is scheduled but the ground above it is not caved; nothing drawn",
+                        scene.drawpoints.name[d]
+                    ));
+                }
+                ok
+            })
+            .collect();
+        if max_t > 0.0 && !drawing.is_empty() {
+            for _ in 0..steps {
+                self.step(period, row, steps, &drawing);
+            }
+        }
+        self.close_period(p, period);
+    }
+
+    fn step(&mut self, period: i64, row: &[f64], steps: usize, drawing: &[usize]) {
+        let bm = &self.scene.blocks;
+        let geoms: Vec<ImzGeom> = self.imzs.iter().map(|m| m.geom.clone()).collect();
+        let all: Vec<usize> = (0..geoms.len()).collect();
+        let cell = self.grid_cell();
+        let grid = ImzGrid::build(&geoms, &all, self.extent.0, self.extent.1, cell);
+        let ground = Ground { blocks: bm, period, geoms: &geoms, grid: &grid };
+        let params = self.params;
+        let mut is_drawing = vec![false; self.imzs.len()];
+        drawing.iter().for_each(|&d| is_drawing[d] = true);
+        self.imzs.par_iter_mut().filter(|m| is_drawing[m.id]).for_each(|imz| {
+            imz.begin_interval();
+            imz.draw(row[imz.id] / steps as f64, &ground, &params);
+            imz.finish_interval(&params);
+        });
+        self.engulf(period, drawing);
+        let geoms: Vec<ImzGeom> = self.imzs.iter().map(|m| m.geom.clone()).collect();
+        let grid = ImzGrid::build(&geoms, drawing, self.extent.0, self.extent.1, cell);
+        let empty: &[DiskMotion] = &[];
+        let motion: Vec<&[DiskMotion]> =
+            self.imzs.iter().map(|m| if is_drawing[m.id] { &m.motion[..] } else { empty }).collect();
+        let r_open: Vec<f64> = self.imzs.iter().map(|m| m.r_open).collect();
+        let field = MotionField { geoms: &geoms, motion: &motion, r_open: &r_open, grid: &grid };
+        let mut drawn = markers::move_markers(&mut self.markers, &field);
+        drawn.sort_unstable_by(|a, b| b.0.cmp(&a.0));
+        for (k, d) in drawn {
+            self.credit(k, d as usize);
+            self.markers.take_into(k, &mut self.drawn.m);
+            self.drawn.drawpoint.push(d);
+            self.drawn.period.push(period);
+        }
+    }
+
+    /// Adds marker row `k` to drawpoint `d`'s tally for the period.
+    fn credit(&mut self, k: usize, d: usize) {
+        let bm = &self.scene.blocks;
+        let b = self.markers.block[k] as usize;
+        let m = self.markers.mass[k];
+        let t = &mut self.tally[d];
+        t.mass += m;
+        t.count += 1;
+        for (g, col) in bm.grades.iter().enumerate() {
+            t.grade[g] += m * col[b];
+        }
+        t.lith[bm.lithology[b] as usize] += m;
+        t.origin_z += m * self.lattice.pos(self.markers.id[k] as usize)[2];
+        t.frag += m * self.markers.frag[k];
+        t.fines += m * self.fines_frac[b];
+        if self.waste[b] {
+            t.waste += m;
+        }
+    }
+
+    /// Turns lattice sites newly covered by the drawing IMZs into moving markers.
+    fn engulf(&mut self, period: i64, drawing: &[usize]) {
+        let lat = self.lattice;
+        let bm = &self.scene.blocks;
+        let engulfed = &self.engulfed;
+        let mut sites: Vec<usize> = drawing
+            .par_iter()
+            .map(|&d| {
+                let imz = &self.imzs[d];
+                let g = &imz.geom;
+                let mut found = Vec::new();
+                for (i, (&r, &r0)) in g.radius.iter().zip(&imz.r_engulfed).enumerate() {
+                    if r <= r0 {
+                        continue;
+                    }
+                    let zb = g.z0 + i as f64 * g.h;
+                    let (Some(kr), Some(jr), Some(ir)) =
+                        (lat.range(2, zb, zb + g.h), lat.range(1, g.y - r, g.y + r), lat.range(0, g.x - r, g.x + r))
+                    else {
+                        continue;
+                    };
+                    for k in kr.0..=kr.1 {
+                        for j in jr.0..=jr.1 {
+                            for ii in ir.0..=ir.1 {
+                                let id = lat.id(ii, j, k);
+                                if engulfed[id] {
+                                    continue;
+                                }
+                                let p = lat.pos(id);
+                                let a2 = (p[0] - g.x).powi(2) + (p[1] - g.y).powi(2);
+                                if a2 <= r * r && a2 > r0 * r0 {
+                                    found.push(id);
+                                }
+                            }
+                        }
+                    }
+                }
+                found
+            })
+            .flatten()
+            .collect();
+        for &d in drawing {
+            let imz = &mut self.imzs[d];
+            imz.r_engulfed.clone_from(&imz.geom.radius);
+        }
+        sites.sort_unstable();
+        sites.dedup();
+        for id in sites {
+            let p = lat.pos(id);
+            let Some(b) = bm.locate(p) else { continue };
+            if !bm.flowable(b, period) {
+                continue;
+            }
+            self.engulfed[id] = true;
+            self.markers.push(id as u64, p, self.marker_mass[b], b as u32, bm.frag[b]);
+        }
+    }
+
+    /// Recomputes the mobilised-property sums of every disk from the markers inside it.
+    fn refresh_mobilised(&mut self) {
+        let bm = &self.scene.blocks;
+        for imz in &mut self.imzs {
+            imz.mobilised.iter_mut().for_each(|m| *m = Mobilised::default());
+        }
+        let geoms: Vec<ImzGeom> = self.imzs.iter().map(|m| m.geom.clone()).collect();
+        let all: Vec<usize> = (0..geoms.len()).collect();
+        let grid = ImzGrid::build(&geoms, &all, self.extent.0, self.extent.1, self.grid_cell());
+        let mk = &self.markers;
+        for k in 0..mk.len() {
+            let p = [mk.x[k], mk.y[k], mk.z[k]];
+            let b = mk.block[k] as usize;
+            for &d in grid.at(p[0], p[1]) {
+                let g = &geoms[d as usize];
+                if g.contains(p) {
+                    let i = ((p[2] - g.z0) / g.h) as usize;
+                    let m = &mut self.imzs[d as usize].mobilised[i];
+                    m.d += mk.frag[k];
+                    m.phi += bm.friction[b];
+                    m.rho1 += bm.density[b] * (1.0 - bm.n1[b]);
+                    m.rho_s += bm.density[b];
+                    m.count += 1;
+                }
+            }
+        }
+    }
+
+    /// Writes the period's extraction rows and snapshots, and applies the correction.
+    fn close_period(&mut self, p: usize, period: i64) {
+        let scene = self.scene;
+        let row = scene.schedule.period(p);
+        let ex = &mut self.out.extraction;
+        for d in 0..row.len() {
+            let t = std::mem::replace(
+                &mut self.tally[d],
+                Tally {
+                    grade: vec![0.0; scene.blocks.grades.len()],
+                    lith: vec![0.0; scene.blocks.lithology_names.len()],
+                    ..Default::default()
+                },
+            );
+            let scheduled = row[d];
+            if scheduled <= 0.0 && t.count == 0 && self.carry[d] == 0.0 {
+                continue;
+            }
+            let target = scheduled + self.carry[d];
+            let (c, credited) = if t.mass > 0.0 {
+                let c = (target / t.mass).clamp(CORRECTION_BOUNDS.0, CORRECTION_BOUNDS.1);
+                (c, c * t.mass)
+            } else {
+                (1.0, 0.0)
+            };
+            self.carry[d] = target - credited;
+            self.cum[d] += credited;
+            let per = |x: f64| if t.mass > 0.0 { x / t.mass } else { f64::NAN };
+            ex.drawpoint.push(d as u32);
+            ex.period.push(period);
+            ex.scheduled_tonnes.push(scheduled);
+            ex.marker_tonnes.push(t.mass);
+            ex.correction.push(c);
+            ex.tonnes.push(credited);
+            ex.shortfall_tonnes.push(self.carry[d]);
+            ex.cum_tonnes.push(self.cum[d]);
+            ex.markers.push(t.count);
+            ex.dilution.push(per(t.waste));
+            ex.origin_z.push(per(t.origin_z));
+            ex.hod.push(self.cum[d] / self.hod_density_area[d].max(1e-12));
+            ex.frag_size.push(per(t.frag));
+            ex.fines_share.push(per(t.fines));
+            ex.air_gap.push(self.imzs[d].air);
+            let short = self.carry[d] > 1e-6 * target.max(1.0);
+            ex.status.push(if scheduled <= 0.0 && t.count == 0 { "idle" } else if short { "short" } else { "ok" });
+            for (g, v) in t.grade.iter().enumerate() {
+                ex.grades[g].push(per(*v));
+            }
+            for (l, v) in t.lith.iter().enumerate() {
+                ex.lithology[l].push(per(*v));
+            }
+        }
+        let last = p + 1 == scene.periods.len();
+        if self.scenario.outputs.imz_every_period || last {
+            let imz = &mut self.out.imz;
+            for m in &self.imzs {
+                for (i, &r) in m.geom.radius.iter().enumerate() {
+                    imz.drawpoint.push(m.id as u32);
+                    imz.period.push(period);
+                    imz.disk.push(i as i64);
+                    imz.z_base.push(m.geom.z0 + i as f64 * m.geom.h);
+                    imz.z_top.push(m.geom.z0 + (i + 1) as f64 * m.geom.h);
+                    imz.radius.push(r);
+                }
+            }
+        }
+        let wanted = &self.scenario.outputs.marker_periods;
+        if wanted.contains(&period) || (wanted.is_empty() && last) {
+            let snap = self.snapshot(period);
+            self.out.snapshots.push(snap);
+        }
+    }
+
+    /// Marker states now: every moving and drawn marker, sorted by id.
+    pub fn snapshot(&self, period: i64) -> MarkerSnapshot {
+        let bm = &self.scene.blocks;
+        let mut rows: Vec<(u64, bool, usize)> = (0..self.markers.len())
+            .map(|k| (self.markers.id[k], false, k))
+            .chain((0..self.drawn.m.len()).map(|k| (self.drawn.m.id[k], true, k)))
+            .collect();
+        rows.sort_unstable();
+        let mut s = MarkerSnapshot { period, ..Default::default() };
+        for (id, is_drawn, k) in rows {
+            let m = if is_drawn { &self.drawn.m } else { &self.markers };
+            let o = self.lattice.pos(id as usize);
+            let b = m.block[k] as usize;
+            s.marker_id.push(id as i64);
+            s.x.push(m.x[k]);
+            s.y.push(m.y[k]);
+            s.z.push(m.z[k]);
+            s.origin_x.push(o[0]);
+            s.origin_y.push(o[1]);
+            s.origin_z.push(o[2]);
+            s.mass.push(m.mass[k]);
+            s.block_id.push(bm.id[b]);
+            s.state.push(if is_drawn { MarkerState::Drawn } else { MarkerState::Moving });
+            s.porosity.push(bm.n1[b]);
+            s.frag_size.push(m.frag[k]);
+            s.shear_strain.push(m.strain[k]);
+            s.shear_work.push(m.work[k]);
+            s.drawpoint.push(if is_drawn { self.drawn.drawpoint[k] } else { u32::MAX });
+            s.drawn_period.push(if is_drawn { self.drawn.period[k] } else { -1 });
+        }
+        s
+    }
+
+    /// Completes the output: the drawn-marker table, the mass balance and warnings.
+    fn finish(mut self) -> RunOutput {
+        let bm = &self.scene.blocks;
+        let dm = &self.drawn;
+        let mut order: Vec<usize> = (0..dm.m.len()).collect();
+        order.sort_unstable_by_key(|&k| dm.m.id[k]);
+        let t = &mut self.out.drawn;
+        for k in order {
+            let o = self.lattice.pos(dm.m.id[k] as usize);
+            t.marker_id.push(dm.m.id[k] as i64);
+            t.drawpoint.push(dm.drawpoint[k]);
+            t.period.push(dm.period[k]);
+            t.origin_x.push(o[0]);
+            t.origin_y.push(o[1]);
+            t.origin_z.push(o[2]);
+            t.mass.push(dm.m.mass[k]);
+            t.block_id.push(bm.id[dm.m.block[k] as usize]);
+            t.frag_size.push(dm.m.frag[k]);
+        }
+        let sched = &self.scene.schedule;
+        let n_dp = self.scene.drawpoints.len();
+        let b = &mut self.out.balance;
+        b.per_drawpoint = (0..n_dp).map(|d| (sched.total(d), self.cum[d])).collect();
+        b.scheduled_tonnes = sched.tonnes.iter().sum();
+        b.credited_tonnes = self.cum.iter().sum();
+        b.marker_tonnes = self.out.extraction.marker_tonnes.iter().sum();
+        b.final_shortfall_tonnes = self.carry.iter().sum();
+        b.markers_drawn = dm.m.len() as u64;
+        b.markers_mobilised = (dm.m.len() + self.markers.len()) as u64;
+        for (d, &c) in self.carry.iter().enumerate() {
+            if c > 1e-6 * sched.total(d).max(1.0) {
+                self.out.warnings.push(format!(
+                    "drawpoint {} could not deliver {:.1} t of its schedule (IMZ blocked or nothing left to draw)",
+                    self.scene.drawpoints.name[d], c
+                ));
+            }
+        }
+        for imz in &self.imzs {
+            if imz.blocked {
+                self.out.warnings.push(format!(
+                    "drawpoint {}: IMZ reached unflowable ground; {:.1} m3 of void is an air gap (air gap and rilling are modelled in a later mechanism)",
+                    self.scene.drawpoints.name[imz.id], imz.air
+                ));
+            }
+        }
+        self.out
+    }
+}
+
+/// Tributary footprint × in-situ bulk density per drawpoint (t per m of height of draw):
+/// each block-grid column belongs to its nearest drawpoint.
+fn tributary(scene: &Scene) -> Vec<f64> {
+    let bm = &scene.blocks;
+    let dp = &scene.drawpoints;
+    let mut out = vec![0.0; dp.len()];
+    if dp.is_empty() {
+        return out;
+    }
+    let area = bm.size[0] * bm.size[1];
+    for j in 0..bm.dims[1] {
+        for i in 0..bm.dims[0] {
+            let (mut rho, mut n) = (0.0, 0usize);
+            for k in 0..bm.dims[2] {
+                let b = bm.index[i + bm.dims[0] * (j + bm.dims[1] * k)];
+                if b != crate::model::block_model::NO_BLOCK {
+                    let b = b as usize;
+                    rho += bm.density[b] * (1.0 - bm.n0[b]);
+                    n += 1;
+                }
+            }
+            if n == 0 {
+                continue;
+            }
+            let x = bm.origin[0] + (i as f64 + 0.5) * bm.size[0];
+            let y = bm.origin[1] + (j as f64 + 0.5) * bm.size[1];
+            let near = (0..dp.len())
+                .min_by(|&a, &b| {
+                    let da = (dp.x[a] - x).powi(2) + (dp.y[a] - y).powi(2);
+                    let db = (dp.x[b] - x).powi(2) + (dp.y[b] - y).powi(2);
+                    da.total_cmp(&db)
+                })
+                .unwrap_or(0);
+            out[near] += area * rho / n as f64;
+        }
+    }
+    out
+}
+
+/// Which blocks are waste under the scenario's dilution rule.
+fn waste_blocks(scene: &Scene, sc: &Scenario) -> Vec<bool> {
+    let bm = &scene.blocks;
+    let g = match &sc.dilution.grade {
+        Some(name) => bm.grade_names.iter().position(|n| n == name),
+        None => (!bm.grades.is_empty()).then_some(0),
+    };
+    let waste_lith: Vec<bool> =
+        bm.lithology_names.iter().map(|n| sc.dilution.waste_lithologies.iter().any(|w| w == n)).collect();
+    (0..bm.len())
+        .map(|b| waste_lith[bm.lithology[b] as usize] || g.is_some_and(|g| bm.grades[g][b] < sc.dilution.cutoff))
+        .collect()
+}
+
+/// Mass share of each block's primary fragmentation finer than `cut`: the Weibull CDF
+/// 1 − exp(−(cut/β)^α) where α, β are given, else 1 or 0 by the mean size.
+fn fines_fractions(scene: &Scene, cut: f64) -> Vec<f64> {
+    let bm = &scene.blocks;
+    (0..bm.len())
+        .map(|b| {
+            let (a, s) = (bm.frag_shape[b], bm.frag_scale[b]);
+            if a.is_finite() && s.is_finite() && a > 0.0 && s > 0.0 {
+                1.0 - (-(cut / s).powf(a)).exp()
+            } else if bm.frag[b] < cut {
+                1.0
+            } else {
+                0.0
+            }
+        })
+        .collect()
+}

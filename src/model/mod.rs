@@ -6,6 +6,7 @@ pub mod demo;
 pub mod layout;
 pub mod load;
 pub mod scenario;
+pub mod synthetic;
 
 pub use block_model::BlockModel;
 pub use layout::{Drawpoints, Periods, Schedule};

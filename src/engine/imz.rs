@@ -1,0 +1,508 @@
+//! Isolated movement zones (summary §3.3, DESIGN §4.1).
+//!
+//! An IMZ is a stack of horizontal disks of thickness `h` on its drawpoint's vertical axis.
+//! Drawing a volume Δv opens a void at the drawpoint that is passed upward disk by disk.
+//! In disk i the void v_i is filled partly by dilation of the stagnant ring at the disk's
+//! perimeter (share r) and partly by material from the disk above (share 1 − r):
+//!
+//! ```text
+//! r   = min(1, (10 d̄ h / (π R_i²)) · max(0, 1 − (R_i − R_{i−1}) tan(45° + φ/2) / h)^q)
+//! R_i ← sqrt(R_i² + r v_i / (π h (n1 − n0)))
+//! v_{i+1} = (1 − r) v_i
+//! ```
+//!
+//! # Choices where the summary is silent
+//! - **Threshold slope.** The summary gives no value for the threshold negative slope β_T
+//!   below which r = 1. We read it as the slope at which the formula reaches 1, i.e.
+//!   r = min(1, formula). At the minimum positive slope 45 + φ/2 the bracket is 0 and r = 0.
+//! - **Lowest disk.** Disk 0 starts with the radius of the drawpoint opening; its R_{−1} is
+//!   that opening radius, so the base can widen only up to the 45 + φ/2 limit.
+//! - **New disks.** When void reaches the top disk a new, empty disk is opened on top
+//!   (R = 0, so r = 1 and the void dilates it). A disk is only opened where the ground on
+//!   the axis is flowable; otherwise the void stays as an air gap (`Imz::air`).
+//! - **Properties.** d̄ and φ of a disk are the mobilised properties (mean of the markers in
+//!   the disk, refreshed each period; the stagnant ones until it holds markers). n0 and n1
+//!   are the stagnant properties: the mean over 24 perimeter points of the block model and
+//!   the current porosity state (a point inside another IMZ is already dilated: n = n1).
+//! - **Vanishing porosity jump.** When the perimeter is already dilated by neighbours
+//!   (n1 − n0 below `min_porosity_jump`), no void is needed to mobilise it: the disk widens
+//!   at no cost to the edge of the dilated ground (stepping out until the jump is back
+//!   above the floor), and the formula then uses the jump found there. So no division by
+//!   zero, and overlapped ground is engulfed, as superposition requires (summary §4.2).
+//! - **Unflowable perimeter.** Points in uncaved blocks or outside the model cannot
+//!   dilate; the fraction f of flowable points scales the area that can grow:
+//!   R_i ← sqrt(R_i² + r v_i / (π h (n1 − n0) f)); with f = 0 the disk cannot widen (r = 0).
+
+use std::f64::consts::PI;
+
+use crate::model::BlockModel;
+
+/// Number of perimeter points sampled for stagnant properties (summary §3.3).
+pub const PERIMETER_POINTS: usize = 24;
+
+/// The r-law: share of the void in disk i filled by dilation of the stagnant perimeter.
+///
+/// `d` = d̄ (m), `h` disk thickness (m), `r_i` = R_i, `r_below` = R_{i−1}, `phi` in degrees,
+/// `q` the exponent (3.5 by default).
+#[inline]
+pub fn r_law(d: f64, h: f64, r_i: f64, r_below: f64, phi: f64, q: f64) -> f64 {
+    if r_i <= 0.0 {
+        return 1.0;
+    }
+    let slope = (45.0 + 0.5 * phi).to_radians().tan();
+    let bracket = (1.0 - (r_i - r_below) * slope / h).max(0.0);
+    (10.0 * d * h / (PI * r_i * r_i) * bracket.powf(q)).min(1.0)
+}
+
+/// The radius update R_i ← sqrt(R_i² + r v_i / (π h Δn f)).
+#[inline]
+pub fn grown_radius(r_i: f64, r: f64, v: f64, h: f64, jump: f64, flow_frac: f64) -> f64 {
+    (r_i * r_i + r * v / (PI * h * jump * flow_frac)).sqrt()
+}
+
+/// Geometry of one IMZ as seen by other IMZs and the marker pass.
+#[derive(Debug, Clone, Default)]
+pub struct ImzGeom {
+    /// Axis Easting, m.
+    pub x: f64,
+    /// Axis Northing, m.
+    pub y: f64,
+    /// Base elevation (drawpoint), m.
+    pub z0: f64,
+    /// Disk thickness h, m.
+    pub h: f64,
+    /// Disk radii R_i, m.
+    pub radius: Vec<f64>,
+}
+
+impl ImzGeom {
+    /// Largest disk radius.
+    pub fn max_radius(&self) -> f64 {
+        self.radius.iter().cloned().fold(0.0, f64::max)
+    }
+    /// Whether a point lies inside this IMZ.
+    #[inline]
+    pub fn contains(&self, p: [f64; 3]) -> bool {
+        let t = (p[2] - self.z0) / self.h;
+        if !(t >= 0.0) {
+            return false;
+        }
+        let i = t as usize;
+        match self.radius.get(i) {
+            Some(&r) => {
+                let (dx, dy) = (p[0] - self.x, p[1] - self.y);
+                dx * dx + dy * dy <= r * r
+            }
+            None => false,
+        }
+    }
+}
+
+/// A uniform 2-D grid over the footprint listing which IMZs may cover each cell.
+#[derive(Debug, Clone, Default)]
+pub struct ImzGrid {
+    origin: [f64; 2],
+    cell: f64,
+    n: [usize; 2],
+    start: Vec<u32>,
+    ids: Vec<u32>,
+}
+
+impl ImzGrid {
+    /// Builds the grid for the IMZs `which` (indices into `geoms`).
+    pub fn build(geoms: &[ImzGeom], which: &[usize], origin: [f64; 2], extent: [f64; 2], cell: f64) -> ImzGrid {
+        let n = [((extent[0] / cell).ceil() as usize).max(1), ((extent[1] / cell).ceil() as usize).max(1)];
+        let mut counts = vec![0u32; n[0] * n[1] + 1];
+        let ranges: Vec<_> = which
+            .iter()
+            .map(|&d| {
+                let g = &geoms[d];
+                let r = g.max_radius();
+                let lo = |c: f64, o: f64, m: usize| (((c - r - o) / cell).floor().max(0.0) as usize).min(m - 1);
+                let hi = |c: f64, o: f64, m: usize| (((c + r - o) / cell).floor().max(0.0) as usize).min(m - 1);
+                (d, lo(g.x, origin[0], n[0]), hi(g.x, origin[0], n[0]), lo(g.y, origin[1], n[1]), hi(g.y, origin[1], n[1]))
+            })
+            .collect();
+        for &(_, i0, i1, j0, j1) in &ranges {
+            for j in j0..=j1 {
+                for i in i0..=i1 {
+                    counts[i + n[0] * j + 1] += 1;
+                }
+            }
+        }
+        for k in 1..counts.len() {
+            counts[k] += counts[k - 1];
+        }
+        let mut fill = counts.clone();
+        let mut ids = vec![0u32; *counts.last().unwrap() as usize];
+        for &(d, i0, i1, j0, j1) in &ranges {
+            for j in j0..=j1 {
+                for i in i0..=i1 {
+                    let c = i + n[0] * j;
+                    ids[fill[c] as usize] = d as u32;
+                    fill[c] += 1;
+                }
+            }
+        }
+        ImzGrid { origin, cell, n, start: counts, ids }
+    }
+
+    /// IMZ ids whose footprint may cover (x, y).
+    #[inline]
+    pub fn at(&self, x: f64, y: f64) -> &[u32] {
+        let i = (x - self.origin[0]) / self.cell;
+        let j = (y - self.origin[1]) / self.cell;
+        if !(i >= 0.0 && j >= 0.0) {
+            return &[];
+        }
+        let (i, j) = (i as usize, j as usize);
+        if i >= self.n[0] || j >= self.n[1] {
+            return &[];
+        }
+        let c = i + self.n[0] * j;
+        &self.ids[self.start[c] as usize..self.start[c + 1] as usize]
+    }
+}
+
+/// The ground around an IMZ: block model, current period and the other IMZs (a snapshot
+/// taken at the start of the step, so parallel IMZ updates are deterministic).
+pub struct Ground<'a> {
+    /// Block model.
+    pub blocks: &'a BlockModel,
+    /// Current period number (flowability).
+    pub period: i64,
+    /// All IMZ geometries at the start of the step.
+    pub geoms: &'a [ImzGeom],
+    /// Grid over `geoms`.
+    pub grid: &'a ImzGrid,
+}
+
+/// Stagnant properties of a disk (mean over its flowable perimeter points).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Stagnant {
+    /// Mean current porosity (n1 where already dilated, else n0).
+    pub n0: f64,
+    /// Mean dilated porosity n1.
+    pub n1: f64,
+    /// Mean d̄, m.
+    pub d: f64,
+    /// Mean φ, degrees.
+    pub phi: f64,
+    /// Mean dilated bulk density ρ_s (1 − n1), t/m³.
+    pub rho1: f64,
+    /// Flowable share f of the perimeter points.
+    pub flow_frac: f64,
+    /// Radius at which these were sampled.
+    pub sampled_at: f64,
+}
+
+impl Stagnant {
+    /// Porosity jump n1 − n0.
+    pub fn jump(&self) -> f64 {
+        self.n1 - self.n0
+    }
+}
+
+impl Ground<'_> {
+    /// Properties of the ground at a point, or None when it cannot flow (outside the
+    /// model, or not yet caved). `me` is the IMZ asking (its own dilation doesn't count).
+    #[inline]
+    pub fn point(&self, p: [f64; 3], me: usize) -> Option<(f64, f64, f64, f64, f64)> {
+        let b = self.blocks.locate(p)?;
+        if !self.blocks.flowable(b, self.period) {
+            return None;
+        }
+        let bm = self.blocks;
+        let dilated = self.grid.at(p[0], p[1]).iter().any(|&e| e as usize != me && self.geoms[e as usize].contains(p));
+        let n_now = if dilated { bm.n1[b] } else { bm.n0[b] };
+        Some((n_now, bm.n1[b], bm.frag[b], bm.friction[b], bm.density[b] * (1.0 - bm.n1[b])))
+    }
+
+    /// Whether the ground at a point is flowable.
+    pub fn flowable(&self, p: [f64; 3]) -> bool {
+        self.blocks.locate(p).is_some_and(|b| self.blocks.flowable(b, self.period))
+    }
+
+    /// Stagnant properties of a disk of IMZ `me` at radius `radius` and mid-height `z`:
+    /// the mean of 24 equally spaced perimeter points.
+    pub fn stagnant(&self, me: usize, x: f64, y: f64, z: f64, radius: f64) -> Stagnant {
+        let mut s = Stagnant { sampled_at: radius, ..Default::default() };
+        let mut n = 0usize;
+        for k in 0..PERIMETER_POINTS {
+            let t = 2.0 * PI * k as f64 / PERIMETER_POINTS as f64;
+            let p = [x + radius * t.cos(), y + radius * t.sin(), z];
+            if let Some((n0, n1, d, phi, rho1)) = self.point(p, me) {
+                s.n0 += n0;
+                s.n1 += n1;
+                s.d += d;
+                s.phi += phi;
+                s.rho1 += rho1;
+                n += 1;
+            }
+        }
+        if n > 0 {
+            let k = n as f64;
+            s.n0 /= k;
+            s.n1 /= k;
+            s.d /= k;
+            s.phi /= k;
+            s.rho1 /= k;
+        }
+        s.flow_frac = n as f64 / PERIMETER_POINTS as f64;
+        s
+    }
+}
+
+/// Mobilised-property sums of the markers inside one disk.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Mobilised {
+    /// Σ d̄ of markers.
+    pub d: f64,
+    /// Σ φ of markers.
+    pub phi: f64,
+    /// Σ ρ_s (1 − n1).
+    pub rho1: f64,
+    /// Σ ρ_s.
+    pub rho_s: f64,
+    /// Number of markers.
+    pub count: u32,
+}
+
+/// Per-disk state that the marker pass reads, accumulated since the last marker update.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct DiskMotion {
+    /// R_i now, m.
+    pub r: f64,
+    /// R_i at the last marker update (R_i^old), m.
+    pub r_old: f64,
+    /// Δv_i: void passed up into this disk since the last marker update, m³.
+    pub dv: f64,
+    /// Shear band width w_i = factor × d̄, m.
+    pub w: f64,
+    /// Porosity jump used for the radial move.
+    pub jump: f64,
+    /// n1 of the disk.
+    pub n1: f64,
+    /// Janssen normal stress σ_n = ρ_s (1 − n1) g R / (2 tan φ), kPa.
+    pub sigma_n: f64,
+}
+
+/// One drawpoint's IMZ.
+#[derive(Debug, Clone)]
+pub struct Imz {
+    /// Index of this IMZ (= drawpoint index).
+    pub id: usize,
+    /// Geometry (axis, base, h, radii).
+    pub geom: ImzGeom,
+    /// Opening radius (R_{−1} of disk 0), m.
+    pub r_open: f64,
+    /// Per-disk motion accumulated since the last marker update.
+    pub motion: Vec<DiskMotion>,
+    /// Per-disk stagnant properties (cached; resampled when the radius moves).
+    pub stagnant: Vec<Stagnant>,
+    /// Per-disk mobilised sums (refreshed each period, plus newly engulfed markers).
+    pub mobilised: Vec<Mobilised>,
+    /// Radius up to which lattice sites have been engulfed, per disk.
+    pub r_engulfed: Vec<f64>,
+    /// Void that reached unflowable ground: the air gap above this IMZ, m³.
+    pub air: f64,
+    /// True once the top could not open a new disk.
+    pub blocked: bool,
+}
+
+/// IMZ parameters from the scenario.
+#[derive(Debug, Clone, Copy)]
+pub struct ImzParams {
+    /// r-law exponent q.
+    pub q: f64,
+    /// w = factor × d̄.
+    pub shear_band_factor: f64,
+    /// Floor of the porosity jump.
+    pub min_jump: f64,
+    /// Resample stagnant properties when R moved by more than this, m.
+    pub resample: f64,
+    /// Largest radius a disk may reach (model half-diagonal), m.
+    pub r_cap: f64,
+}
+
+impl Imz {
+    /// A new IMZ: disk 0 sized by the opening (radius = width / 2).
+    pub fn new(id: usize, x: f64, y: f64, z0: f64, h: f64, width: f64) -> Imz {
+        let r_open = 0.5 * width;
+        Imz {
+            id,
+            geom: ImzGeom { x, y, z0, h, radius: vec![r_open] },
+            r_open,
+            motion: vec![DiskMotion { r: r_open, r_old: 0.0, ..Default::default() }],
+            stagnant: vec![Stagnant { sampled_at: f64::NAN, ..Default::default() }],
+            mobilised: vec![Mobilised::default()],
+            r_engulfed: vec![0.0],
+            air: 0.0,
+            blocked: false,
+        }
+    }
+
+    /// Number of disks.
+    pub fn disks(&self) -> usize {
+        self.geom.radius.len()
+    }
+
+    /// Mid-height of disk i.
+    pub fn z_mid(&self, i: usize) -> f64 {
+        self.geom.z0 + (i as f64 + 0.5) * self.geom.h
+    }
+
+    /// d̄, φ, ρ_s(1 − n1) and ρ_s of disk i: mobilised where the disk holds markers, else
+    /// stagnant.
+    pub fn props(&self, i: usize) -> (f64, f64, f64) {
+        let m = &self.mobilised[i];
+        if m.count > 0 {
+            let k = m.count as f64;
+            (m.d / k, m.phi / k, m.rho1 / k)
+        } else {
+            let s = &self.stagnant[i];
+            (s.d, s.phi, s.rho1)
+        }
+    }
+
+    fn refresh_stagnant(&mut self, i: usize, g: &Ground, p: &ImzParams) {
+        let r = self.geom.radius[i].max(1e-6);
+        let s = &self.stagnant[i];
+        if !(s.sampled_at.is_finite() && (r - s.sampled_at).abs() <= p.resample) {
+            self.stagnant[i] = g.stagnant(self.id, self.geom.x, self.geom.y, self.z_mid(i), r);
+        }
+    }
+
+    /// Draws `tonnes` from the drawpoint, growing the IMZ. The void opened is the tonnes
+    /// over the dilated bulk density ρ_s (1 − n1) at the drawpoint; it is passed up in cycles
+    /// of at most a quarter of the lowest disk's volume.
+    pub fn draw(&mut self, tonnes: f64, g: &Ground, p: &ImzParams) {
+        self.refresh_stagnant(0, g, p);
+        let (_, _, rho1) = self.props(0);
+        if !(rho1 > 0.0) {
+            // The drawpoint sits in unflowable ground: nothing can be drawn.
+            return;
+        }
+        let v0 = tonnes / rho1;
+        let r0 = self.geom.radius[0];
+        let cycle = 0.25 * PI * r0 * r0 * self.geom.h;
+        let n = ((v0 / cycle).ceil() as usize).max(1);
+        for _ in 0..n {
+            self.pass(v0 / n as f64, g, p);
+        }
+    }
+
+    /// One cycle: passes void `v0` up from the drawpoint through the disks.
+    fn pass(&mut self, v0: f64, g: &Ground, p: &ImzParams) {
+        let h = self.geom.h;
+        let mut v = v0;
+        let mut i = 0;
+        while v > 0.0 {
+            if i == self.disks() {
+                let axis = [self.geom.x, self.geom.y, self.z_mid(i)];
+                if !g.flowable(axis) {
+                    self.air += v;
+                    self.blocked = true;
+                    return;
+                }
+                self.geom.radius.push(0.0);
+                self.motion.push(DiskMotion::default());
+                self.stagnant.push(Stagnant { sampled_at: f64::NAN, ..Default::default() });
+                self.mobilised.push(Mobilised::default());
+                self.r_engulfed.push(0.0);
+            }
+            self.refresh_stagnant(i, g, p);
+            let (d, phi, _) = self.props(i);
+            let r_below = if i == 0 { self.r_open } else { self.geom.radius[i - 1] };
+            let st = self.stagnant[i];
+            let mut r = if st.flow_frac > 0.0 { r_law(d, h, self.geom.radius[i], r_below, phi, p.q) } else { 0.0 };
+            // The remainder of a cycle that has all but vanished is absorbed here, so the
+            // cycle ends and the void is conserved.
+            if (1.0 - r) * v <= 1e-12 * v0 && st.flow_frac > 0.0 {
+                r = 1.0;
+            }
+            self.motion[i].dv += v;
+            if r > 0.0 {
+                let jump = self.usable_jump(i, g, p);
+                let f = self.stagnant[i].flow_frac;
+                self.geom.radius[i] = grown_radius(self.geom.radius[i], r, v, h, jump, f).min(p.r_cap);
+                self.motion[i].jump = jump;
+            }
+            v *= 1.0 - r;
+            i += 1;
+        }
+    }
+
+    /// The porosity jump disk i can use, widening the disk for free across ground that is
+    /// already dilated (see the module docs).
+    fn usable_jump(&mut self, i: usize, g: &Ground, p: &ImzParams) -> f64 {
+        let mut jump = self.stagnant[i].jump();
+        if jump >= p.min_jump {
+            return jump;
+        }
+        let step = (0.25 * p.resample).max(1e-3 * p.r_cap);
+        let mut r = self.geom.radius[i];
+        while r < p.r_cap {
+            r = (r + step).min(p.r_cap);
+            let s = g.stagnant(self.id, self.geom.x, self.geom.y, self.z_mid(i), r);
+            self.stagnant[i] = s;
+            jump = s.jump();
+            if jump >= p.min_jump || s.flow_frac == 0.0 {
+                break;
+            }
+        }
+        self.geom.radius[i] = r;
+        jump.max(p.min_jump)
+    }
+
+    /// Marks the start of a new marker-update interval: R_old ← R, Δv ← 0.
+    pub fn begin_interval(&mut self) {
+        for (m, &r) in self.motion.iter_mut().zip(&self.geom.radius) {
+            *m = DiskMotion { r, r_old: r, ..Default::default() };
+        }
+    }
+
+    /// Fills the per-disk motion fields read by the marker pass (after the draw).
+    pub fn finish_interval(&mut self, p: &ImzParams) {
+        for i in 0..self.disks() {
+            let (d, phi, rho1) = self.props(i);
+            let st = self.stagnant[i];
+            let m = &mut self.motion[i];
+            m.r = self.geom.radius[i];
+            m.w = p.shear_band_factor * d;
+            m.n1 = if st.n1 > 0.0 { st.n1 } else { m.n1 };
+            if m.jump <= 0.0 {
+                m.jump = st.jump().max(p.min_jump);
+            }
+            m.sigma_n = rho1 * 9.81 * m.r / (2.0 * phi.to_radians().tan().max(1e-6));
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn r_law_limits() {
+        // Empty disk: r = 1.
+        assert_eq!(r_law(0.2, 1.0, 0.0, 1.0, 40.0, 3.5), 1.0);
+        // Slope at the minimum positive slope 45 + φ/2: r = 0.
+        let phi: f64 = 40.0;
+        let dr = 1.0 / (45.0 + phi / 2.0).to_radians().tan();
+        assert_eq!(r_law(0.2, 1.0, 2.0 + dr, 2.0, phi, 3.5), 0.0);
+        // Vertical wall: the bare factor 10 d h / (π R²).
+        let r = r_law(0.1, 0.5, 3.0, 3.0, 40.0, 3.5);
+        assert!((r - 10.0 * 0.1 * 0.5 / (PI * 9.0)).abs() < 1e-15);
+        // Negative slope steep enough: capped at 1.
+        assert_eq!(r_law(0.1, 0.5, 0.5, 3.0, 40.0, 3.5), 1.0);
+    }
+
+    #[test]
+    fn radius_update_conserves_volume() {
+        // π h Δn (R'² − R²) = r v, exactly.
+        let (r0, r, v, h, dn) = (2.0, 0.3, 5.0, 0.5, 0.15);
+        let r1 = grown_radius(r0, r, v, h, dn, 1.0);
+        assert!((PI * h * dn * (r1 * r1 - r0 * r0) - r * v).abs() < 1e-12);
+    }
+}

@@ -1,0 +1,370 @@
+//! Markers (summary §3.3, DESIGN §4.2): tracked parcels of material, held column-wise.
+//!
+//! Markers start on a regular lattice of spacing `s` over the block grid. A lattice site
+//! in a block stands for `block in-situ mass / sites in the block` tonnes, so marker mass
+//! adds up to the block model exactly. Stagnant ground is never materialised: a site
+//! becomes a marker (row of [`Markers`]) only when an IMZ engulfs it, and the marker id is
+//! the site index. So stagnant ground costs nothing per increment, and the lattice itself
+//! is the spatial index of the stagnant markers.
+//!
+//! # Motion of a marker at radius a_m in disk i (per IMZ, summed by superposition)
+//! - Vertical, cone (R_i ≤ w_i): Δz = −3 Δv_i (1 − a_m/R_i) / (π R_i²).
+//! - Vertical, frustum (R_i > w_i, plug radius R_p = R_i − w_i):
+//!   plug Δz = −3 Δv_i / (π (R_i² + R_i R_p + R_p²)); annulus the same × (1 − (a_m − R_p)/w_i).
+//! - Radial, from disk expansion ΔR_i = R_i − R_i^old, largest at R_i^old and falling
+//!   linearly to zero at the axis and at the new radius. Its size is the thickness the
+//!   dilating ring gains, ΔR_i (n1 − n0)/(1 − n1). The summary prints the factor inverted,
+//!   (1 − n1)/(n1 − n0); taken literally that moves a marker of a new disk (R^old = 0) by
+//!   ~3.7 R across the axis, and diverges as the porosity jump vanishes, so we use the
+//!   volume-balance form (`tests::radial_move_is_the_ring_dilation`).
+//! - Transfer into a narrower disk below (R_{i−1} < R_i): Δa′ = −(1 − R_{i−1}/R_i) a_m and
+//!   Δz′ = −p (R_i² − R_{i−1}²)/R_{i−1}², p the depth reached below the disk base z_i (this
+//!   is the summary's Δz′ with its Δz cancelled).
+//! - Shear strain in the shear annulus: Γ = |Δz| / min(R, w); shear work Γ σ_n with the
+//!   Janssen σ_n = ρ_s (1 − n1) g R / (2 tan φ) (summary §6.3).
+//!
+//! A marker that leaves the lowest disk is drawn, credited to the IMZ that moved it most.
+
+use rayon::prelude::*;
+
+use super::imz::{DiskMotion, ImzGeom, ImzGrid};
+use crate::model::BlockModel;
+
+/// The marker lattice over the block grid.
+#[derive(Debug, Clone, Copy)]
+pub struct Lattice {
+    /// Lattice origin (grid minimum corner), m.
+    pub origin: [f64; 3],
+    /// Spacing s, m.
+    pub s: f64,
+    /// Sites per axis.
+    pub n: [usize; 3],
+}
+
+impl Lattice {
+    /// A lattice of spacing `s` covering the block grid.
+    pub fn new(bm: &BlockModel, s: f64) -> Lattice {
+        let max = bm.max_corner();
+        let n = [0, 1, 2].map(|a| (((max[a] - bm.origin[a]) / s).round() as usize).max(1));
+        Lattice { origin: bm.origin, s, n }
+    }
+
+    /// Total number of sites.
+    pub fn len(&self) -> usize {
+        self.n[0] * self.n[1] * self.n[2]
+    }
+
+    /// Whether the lattice has no sites.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Position of site `id`.
+    #[inline]
+    pub fn pos(&self, id: usize) -> [f64; 3] {
+        let i = id % self.n[0];
+        let j = (id / self.n[0]) % self.n[1];
+        let k = id / (self.n[0] * self.n[1]);
+        [
+            self.origin[0] + (i as f64 + 0.5) * self.s,
+            self.origin[1] + (j as f64 + 0.5) * self.s,
+            self.origin[2] + (k as f64 + 0.5) * self.s,
+        ]
+    }
+
+    /// Site index range (inclusive) along axis `a` whose centres lie in [lo, hi).
+    #[inline]
+    pub fn range(&self, a: usize, lo: f64, hi: f64) -> Option<(usize, usize)> {
+        let t0 = ((lo - self.origin[a]) / self.s - 0.5).ceil().max(0.0);
+        let t1 = ((hi - self.origin[a]) / self.s - 0.5).ceil() - 1.0;
+        let t1 = t1.min(self.n[a] as f64 - 1.0);
+        (t1 >= t0).then_some((t0 as usize, t1 as usize))
+    }
+
+    /// Site index from per-axis indices.
+    #[inline]
+    pub fn id(&self, i: usize, j: usize, k: usize) -> usize {
+        i + self.n[0] * (j + self.n[1] * k)
+    }
+
+    /// Mass of one marker of each block: block in-situ mass / sites inside the block.
+    pub fn marker_masses(&self, bm: &BlockModel) -> Vec<f64> {
+        (0..bm.len())
+            .map(|b| {
+                let c = [bm.x[b], bm.y[b], bm.z[b]];
+                let sites: usize = (0..3)
+                    .map(|a| {
+                        self.range(a, c[a] - 0.5 * bm.size[a], c[a] + 0.5 * bm.size[a]).map_or(0, |(i0, i1)| i1 - i0 + 1)
+                    })
+                    .product();
+                let vol = bm.size[0] * bm.size[1] * bm.size[2];
+                if sites == 0 {
+                    0.0
+                } else {
+                    vol * bm.density[b] * (1.0 - bm.n0[b]) / sites as f64
+                }
+            })
+            .collect()
+    }
+}
+
+/// Mobilised markers, struct of arrays. Row order is an implementation detail; `id` is
+/// the stable identity (the lattice site).
+#[derive(Debug, Clone, Default)]
+pub struct Markers {
+    /// Marker id (lattice site index).
+    pub id: Vec<u64>,
+    /// Current position.
+    pub x: Vec<f64>,
+    /// Current position.
+    pub y: Vec<f64>,
+    /// Current position.
+    pub z: Vec<f64>,
+    /// Mass, t.
+    pub mass: Vec<f64>,
+    /// Block of origin (row in the block model).
+    pub block: Vec<u32>,
+    /// Representative fragment size, m.
+    pub frag: Vec<f64>,
+    /// Accumulated shear strain Γ.
+    pub strain: Vec<f64>,
+    /// Accumulated shear work Γ σ_n, kPa.
+    pub work: Vec<f64>,
+}
+
+/// Drawn markers: the moving columns plus who drew them and when.
+#[derive(Debug, Clone, Default)]
+pub struct DrawnMarkers {
+    /// The markers as they were when drawn.
+    pub m: Markers,
+    /// Drawpoint that drew each.
+    pub drawpoint: Vec<u32>,
+    /// Period number in which each was drawn.
+    pub period: Vec<i64>,
+}
+
+impl Markers {
+    /// Number of markers.
+    pub fn len(&self) -> usize {
+        self.id.len()
+    }
+
+    /// Whether there are none.
+    pub fn is_empty(&self) -> bool {
+        self.id.is_empty()
+    }
+
+    /// Appends a marker.
+    #[allow(clippy::too_many_arguments)]
+    pub fn push(&mut self, id: u64, p: [f64; 3], mass: f64, block: u32, frag: f64) {
+        self.id.push(id);
+        self.x.push(p[0]);
+        self.y.push(p[1]);
+        self.z.push(p[2]);
+        self.mass.push(mass);
+        self.block.push(block);
+        self.frag.push(frag);
+        self.strain.push(0.0);
+        self.work.push(0.0);
+    }
+
+    /// Moves row `k` out (swap-remove) and appends it to `to`.
+    pub fn take_into(&mut self, k: usize, to: &mut Markers) {
+        to.id.push(self.id.swap_remove(k));
+        to.x.push(self.x.swap_remove(k));
+        to.y.push(self.y.swap_remove(k));
+        to.z.push(self.z.swap_remove(k));
+        to.mass.push(self.mass.swap_remove(k));
+        to.block.push(self.block.swap_remove(k));
+        to.frag.push(self.frag.swap_remove(k));
+        to.strain.push(self.strain.swap_remove(k));
+        to.work.push(self.work.swap_remove(k));
+    }
+}
+
+/// Read-only view of the drawing IMZs for one marker update.
+pub struct MotionField<'a> {
+    /// Geometry of every IMZ.
+    pub geoms: &'a [ImzGeom],
+    /// Per-disk motion of every IMZ (empty slices for IMZs that did not draw).
+    pub motion: &'a [&'a [DiskMotion]],
+    /// Opening radius per IMZ.
+    pub r_open: &'a [f64],
+    /// Grid over the drawing IMZs.
+    pub grid: &'a ImzGrid,
+}
+
+/// Result of moving one marker.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Step {
+    /// Displacement.
+    pub dx: f64,
+    /// Displacement.
+    pub dy: f64,
+    /// Displacement.
+    pub dz: f64,
+    /// Shear strain increment.
+    pub strain: f64,
+    /// Shear work increment, kPa.
+    pub work: f64,
+    /// Drawpoint that drew it, or u32::MAX.
+    pub drawn_by: u32,
+}
+
+/// Vertical displacement Δz_m of a marker at radius `a` in a disk of radius `r`, shear
+/// band `w`, with void `dv` passed into it (cone when R ≤ w, frustum otherwise).
+#[inline]
+pub fn vertical(dv: f64, r: f64, w: f64, a: f64) -> f64 {
+    if r <= 0.0 || a > r {
+        return 0.0;
+    }
+    if r <= w {
+        -3.0 * dv * (1.0 - a / r) / (std::f64::consts::PI * r * r)
+    } else {
+        let rp = r - w;
+        let plug = -3.0 * dv / (std::f64::consts::PI * (r * r + r * rp + rp * rp));
+        if a <= rp {
+            plug
+        } else {
+            plug * (1.0 - (a - rp) / w)
+        }
+    }
+}
+
+/// Inward radial displacement (negative) of a marker at radius `a` from a disk expansion
+/// `r_old → r_new`, with porosity jump `jump` and dilated porosity `n1`.
+#[inline]
+pub fn radial(r_old: f64, r_new: f64, jump: f64, n1: f64, a: f64) -> f64 {
+    let dr = r_new - r_old;
+    if dr <= 0.0 || a > r_new {
+        return 0.0;
+    }
+    let peak = dr * jump / (1.0 - n1);
+    if a > r_old {
+        -peak * (1.0 - (a - r_old) / dr)
+    } else if r_old > 0.0 {
+        -peak * (a / r_old)
+    } else {
+        0.0
+    }
+}
+
+impl MotionField<'_> {
+    /// Displacement of a marker at `p` by every drawing IMZ that contains it.
+    #[inline]
+    pub fn step(&self, p: [f64; 3]) -> Step {
+        let mut st = Step { drawn_by: u32::MAX, ..Default::default() };
+        let mut strongest = 0.0f64;
+        let mut lowest_base_by = u32::MAX;
+        for &d in self.grid.at(p[0], p[1]) {
+            let g = &self.geoms[d as usize];
+            let motion = self.motion[d as usize];
+            let t = (p[2] - g.z0) / g.h;
+            if !(t >= 0.0) {
+                continue;
+            }
+            let i = t as usize;
+            let Some(m) = motion.get(i) else { continue };
+            let (ex, ey) = (p[0] - g.x, p[1] - g.y);
+            let a = (ex * ex + ey * ey).sqrt();
+            if a > m.r {
+                continue;
+            }
+            let mut dz = vertical(m.dv, m.r, m.w, a);
+            let mut da = radial(m.r_old, m.r, m.jump, m.n1, a);
+            // Transfer into a narrower disk below (Δa′, Δz′).
+            let z_base = g.z0 + i as f64 * g.h;
+            if i > 0 && p[2] + dz < z_base {
+                let r_below = motion[i - 1].r;
+                if r_below < m.r && r_below > 0.0 {
+                    let a1 = (a + da).max(0.0);
+                    da += -(1.0 - r_below / m.r) * a1;
+                    let depth = z_base - (p[2] + dz);
+                    dz += -depth * (m.r * m.r - r_below * r_below) / (r_below * r_below);
+                }
+            }
+            if a > 0.0 {
+                st.dx += da * ex / a;
+                st.dy += da * ey / a;
+            }
+            st.dz += dz;
+            // Shear strain in the annulus (a > R − w; the whole disk when R ≤ w).
+            if a > m.r - m.w {
+                let gamma = dz.abs() / m.r.min(m.w).max(1e-12);
+                st.strain += gamma;
+                st.work += gamma * m.sigma_n;
+            }
+            if dz.abs() > strongest {
+                strongest = dz.abs();
+                lowest_base_by = d;
+            }
+        }
+        if lowest_base_by != u32::MAX && p[2] + st.dz < self.geoms[lowest_base_by as usize].z0 {
+            st.drawn_by = lowest_base_by;
+        }
+        st
+    }
+}
+
+/// Moves every marker once (parallel, pure per marker, so the result does not depend on
+/// the number of threads). Returns the rows drawn, in row order, with their drawpoint.
+pub fn move_markers(mk: &mut Markers, field: &MotionField) -> Vec<(usize, u32)> {
+    let steps: Vec<Step> = (0..mk.len()).into_par_iter().map(|k| field.step([mk.x[k], mk.y[k], mk.z[k]])).collect();
+    (mk.x.par_iter_mut(), mk.y.par_iter_mut(), mk.z.par_iter_mut(), mk.strain.par_iter_mut(), mk.work.par_iter_mut(), &steps)
+        .into_par_iter()
+        .for_each(|(x, y, z, g, w, s)| {
+            *x += s.dx;
+            *y += s.dy;
+            *z += s.dz;
+            *g += s.strain;
+            *w += s.work;
+        });
+    steps.iter().enumerate().filter(|(_, s)| s.drawn_by != u32::MAX).map(|(k, s)| (k, s.drawn_by)).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::f64::consts::PI;
+
+    /// ∫ Δz dA over the disk equals −Δv for both profiles (volume continuity), to the
+    /// quadrature error of 20 000 rings (< 1e-6 relative).
+    #[test]
+    fn vertical_profiles_integrate_to_the_void() {
+        for &(r, w) in &[(1.0, 2.0), (3.0, 1.0), (5.0, 0.5)] {
+            let dv = 2.0;
+            let n = 20_000;
+            let mut vol = 0.0;
+            for k in 0..n {
+                let a = (k as f64 + 0.5) * r / n as f64;
+                vol += vertical(dv, r, w, a) * 2.0 * PI * a * (r / n as f64);
+            }
+            assert!((vol + dv).abs() < 1e-6 * dv, "r={r} w={w}: {vol}");
+        }
+    }
+
+    #[test]
+    fn radial_move_is_the_ring_dilation() {
+        // Largest at R_old, zero at the axis and at R_new; size ΔR Δn/(1 − n1).
+        let (r0, r1, dn, n1) = (2.0, 2.5, 0.15, 0.45);
+        let peak = (r1 - r0) * dn / (1.0 - n1);
+        assert!((radial(r0, r1, dn, n1, r0) + peak).abs() < 1e-12);
+        assert_eq!(radial(r0, r1, dn, n1, 0.0), 0.0);
+        assert!(radial(r0, r1, dn, n1, r1).abs() < 1e-12);
+        // A new disk never sends a marker across the axis.
+        for k in 1..=10 {
+            let a = 0.1 * k as f64;
+            assert!(a + radial(0.0, 1.0, 0.15, 0.45, a) >= 0.0);
+        }
+    }
+
+    #[test]
+    fn lattice_ranges() {
+        let l = Lattice { origin: [0.0; 3], s: 1.0, n: [10, 10, 10] };
+        assert_eq!(l.range(0, 0.0, 10.0), Some((0, 9)));
+        assert_eq!(l.range(0, 2.0, 4.0), Some((2, 3)));
+        assert_eq!(l.range(0, 2.6, 2.9), None);
+        let id = l.id(3, 4, 5);
+        assert_eq!(l.pos(id), [3.5, 4.5, 5.5]);
+    }
+}
