@@ -19,6 +19,7 @@
 use std::path::PathBuf;
 
 pub mod charts;
+pub mod figures;
 pub mod inputs;
 pub mod manifest;
 pub mod parquet;
