@@ -110,17 +110,36 @@ pub struct ImzGrid {
 
 impl ImzGrid {
     /// Builds the grid for the IMZs `which` (indices into `geoms`).
-    pub fn build(geoms: &[ImzGeom], which: &[usize], origin: [f64; 2], extent: [f64; 2], cell: f64) -> ImzGrid {
-        let n = [((extent[0] / cell).ceil() as usize).max(1), ((extent[1] / cell).ceil() as usize).max(1)];
+    pub fn build(
+        geoms: &[ImzGeom],
+        which: &[usize],
+        origin: [f64; 2],
+        extent: [f64; 2],
+        cell: f64,
+    ) -> ImzGrid {
+        let n = [
+            ((extent[0] / cell).ceil() as usize).max(1),
+            ((extent[1] / cell).ceil() as usize).max(1),
+        ];
         let mut counts = vec![0u32; n[0] * n[1] + 1];
         let ranges: Vec<_> = which
             .iter()
             .map(|&d| {
                 let g = &geoms[d];
                 let r = g.max_radius();
-                let lo = |c: f64, o: f64, m: usize| (((c - r - o) / cell).floor().max(0.0) as usize).min(m - 1);
-                let hi = |c: f64, o: f64, m: usize| (((c + r - o) / cell).floor().max(0.0) as usize).min(m - 1);
-                (d, lo(g.x, origin[0], n[0]), hi(g.x, origin[0], n[0]), lo(g.y, origin[1], n[1]), hi(g.y, origin[1], n[1]))
+                let lo = |c: f64, o: f64, m: usize| {
+                    (((c - r - o) / cell).floor().max(0.0) as usize).min(m - 1)
+                };
+                let hi = |c: f64, o: f64, m: usize| {
+                    (((c + r - o) / cell).floor().max(0.0) as usize).min(m - 1)
+                };
+                (
+                    d,
+                    lo(g.x, origin[0], n[0]),
+                    hi(g.x, origin[0], n[0]),
+                    lo(g.y, origin[1], n[1]),
+                    hi(g.y, origin[1], n[1]),
+                )
             })
             .collect();
         for &(_, i0, i1, j0, j1) in &ranges {
@@ -144,7 +163,13 @@ impl ImzGrid {
                 }
             }
         }
-        ImzGrid { origin, cell, n, start: counts, ids }
+        ImzGrid {
+            origin,
+            cell,
+            n,
+            start: counts,
+            ids,
+        }
     }
 
     /// IMZ ids whose footprint may cover (x, y).
@@ -213,20 +238,35 @@ impl Ground<'_> {
             return None;
         }
         let bm = self.blocks;
-        let dilated = self.grid.at(p[0], p[1]).iter().any(|&e| e as usize != me && self.geoms[e as usize].contains(p));
+        let dilated = self
+            .grid
+            .at(p[0], p[1])
+            .iter()
+            .any(|&e| e as usize != me && self.geoms[e as usize].contains(p));
         let n_now = if dilated { bm.n1[b] } else { bm.n0[b] };
-        Some((n_now, bm.n1[b], bm.frag[b], bm.friction[b], bm.density[b] * (1.0 - bm.n1[b])))
+        Some((
+            n_now,
+            bm.n1[b],
+            bm.frag[b],
+            bm.friction[b],
+            bm.density[b] * (1.0 - bm.n1[b]),
+        ))
     }
 
     /// Whether the ground at a point is flowable.
     pub fn flowable(&self, p: [f64; 3]) -> bool {
-        self.blocks.locate(p).is_some_and(|b| self.blocks.flowable(b, self.period))
+        self.blocks
+            .locate(p)
+            .is_some_and(|b| self.blocks.flowable(b, self.period))
     }
 
     /// Stagnant properties of a disk of IMZ `me` at radius `radius` and mid-height `z`:
     /// the mean of 24 equally spaced perimeter points.
     pub fn stagnant(&self, me: usize, x: f64, y: f64, z: f64, radius: f64) -> Stagnant {
-        let mut s = Stagnant { sampled_at: radius, ..Default::default() };
+        let mut s = Stagnant {
+            sampled_at: radius,
+            ..Default::default()
+        };
         let mut n = 0usize;
         for k in 0..PERIMETER_POINTS {
             let t = 2.0 * PI * k as f64 / PERIMETER_POINTS as f64;
@@ -331,10 +371,23 @@ impl Imz {
         let r_open = 0.5 * width;
         Imz {
             id,
-            geom: ImzGeom { x, y, z0, h, radius: vec![r_open] },
+            geom: ImzGeom {
+                x,
+                y,
+                z0,
+                h,
+                radius: vec![r_open],
+            },
             r_open,
-            motion: vec![DiskMotion { r: r_open, r_old: 0.0, ..Default::default() }],
-            stagnant: vec![Stagnant { sampled_at: f64::NAN, ..Default::default() }],
+            motion: vec![DiskMotion {
+                r: r_open,
+                r_old: 0.0,
+                ..Default::default()
+            }],
+            stagnant: vec![Stagnant {
+                sampled_at: f64::NAN,
+                ..Default::default()
+            }],
             mobilised: vec![Mobilised::default()],
             r_engulfed: vec![0.0],
             air: 0.0,
@@ -407,15 +460,26 @@ impl Imz {
                 }
                 self.geom.radius.push(0.0);
                 self.motion.push(DiskMotion::default());
-                self.stagnant.push(Stagnant { sampled_at: f64::NAN, ..Default::default() });
+                self.stagnant.push(Stagnant {
+                    sampled_at: f64::NAN,
+                    ..Default::default()
+                });
                 self.mobilised.push(Mobilised::default());
                 self.r_engulfed.push(0.0);
             }
             self.refresh_stagnant(i, g, p);
             let (d, phi, _) = self.props(i);
-            let r_below = if i == 0 { self.r_open } else { self.geom.radius[i - 1] };
+            let r_below = if i == 0 {
+                self.r_open
+            } else {
+                self.geom.radius[i - 1]
+            };
             let st = self.stagnant[i];
-            let mut r = if st.flow_frac > 0.0 { r_law(d, h, self.geom.radius[i], r_below, phi, p.q) } else { 0.0 };
+            let mut r = if st.flow_frac > 0.0 {
+                r_law(d, h, self.geom.radius[i], r_below, phi, p.q)
+            } else {
+                0.0
+            };
             // The remainder of a cycle that has all but vanished is absorbed here, so the
             // cycle ends and the void is conserved.
             if (1.0 - r) * v <= 1e-12 * v0 && st.flow_frac > 0.0 {
@@ -425,7 +489,8 @@ impl Imz {
             if r > 0.0 {
                 let jump = self.usable_jump(i, g, p);
                 let f = self.stagnant[i].flow_frac;
-                self.geom.radius[i] = grown_radius(self.geom.radius[i], r, v, h, jump, f).min(p.r_cap);
+                self.geom.radius[i] =
+                    grown_radius(self.geom.radius[i], r, v, h, jump, f).min(p.r_cap);
                 self.motion[i].jump = jump;
             }
             v *= 1.0 - r;
@@ -458,7 +523,11 @@ impl Imz {
     /// Marks the start of a new marker-update interval: R_old ← R, Δv ← 0.
     pub fn begin_interval(&mut self) {
         for (m, &r) in self.motion.iter_mut().zip(&self.geom.radius) {
-            *m = DiskMotion { r, r_old: r, ..Default::default() };
+            *m = DiskMotion {
+                r,
+                r_old: r,
+                ..Default::default()
+            };
         }
     }
 

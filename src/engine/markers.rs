@@ -46,7 +46,11 @@ impl Lattice {
     pub fn new(bm: &BlockModel, s: f64) -> Lattice {
         let max = bm.max_corner();
         let n = [0, 1, 2].map(|a| (((max[a] - bm.origin[a]) / s).round() as usize).max(1));
-        Lattice { origin: bm.origin, s, n }
+        Lattice {
+            origin: bm.origin,
+            s,
+            n,
+        }
     }
 
     /// Total number of sites.
@@ -94,7 +98,8 @@ impl Lattice {
                 let c = [bm.x[b], bm.y[b], bm.z[b]];
                 let sites: usize = (0..3)
                     .map(|a| {
-                        self.range(a, c[a] - 0.5 * bm.size[a], c[a] + 0.5 * bm.size[a]).map_or(0, |(i0, i1)| i1 - i0 + 1)
+                        self.range(a, c[a] - 0.5 * bm.size[a], c[a] + 0.5 * bm.size[a])
+                            .map_or(0, |(i0, i1)| i1 - i0 + 1)
                     })
                     .product();
                 let vol = bm.size[0] * bm.size[1] * bm.size[2];
@@ -253,7 +258,10 @@ impl MotionField<'_> {
     /// Displacement of a marker at `p` by every drawing IMZ that contains it.
     #[inline]
     pub fn step(&self, p: [f64; 3]) -> Step {
-        let mut st = Step { drawn_by: u32::MAX, ..Default::default() };
+        let mut st = Step {
+            drawn_by: u32::MAX,
+            ..Default::default()
+        };
         let mut strongest = 0.0f64;
         let mut lowest_base_by = u32::MAX;
         for &d in self.grid.at(p[0], p[1]) {
@@ -309,8 +317,18 @@ impl MotionField<'_> {
 /// Moves every marker once (parallel, pure per marker, so the result does not depend on
 /// the number of threads). Returns the rows drawn, in row order, with their drawpoint.
 pub fn move_markers(mk: &mut Markers, field: &MotionField) -> Vec<(usize, u32)> {
-    let steps: Vec<Step> = (0..mk.len()).into_par_iter().map(|k| field.step([mk.x[k], mk.y[k], mk.z[k]])).collect();
-    (mk.x.par_iter_mut(), mk.y.par_iter_mut(), mk.z.par_iter_mut(), mk.strain.par_iter_mut(), mk.work.par_iter_mut(), &steps)
+    let steps: Vec<Step> = (0..mk.len())
+        .into_par_iter()
+        .map(|k| field.step([mk.x[k], mk.y[k], mk.z[k]]))
+        .collect();
+    (
+        mk.x.par_iter_mut(),
+        mk.y.par_iter_mut(),
+        mk.z.par_iter_mut(),
+        mk.strain.par_iter_mut(),
+        mk.work.par_iter_mut(),
+        &steps,
+    )
         .into_par_iter()
         .for_each(|(x, y, z, g, w, s)| {
             *x += s.dx;
@@ -319,7 +337,12 @@ pub fn move_markers(mk: &mut Markers, field: &MotionField) -> Vec<(usize, u32)> 
             *g += s.strain;
             *w += s.work;
         });
-    steps.iter().enumerate().filter(|(_, s)| s.drawn_by != u32::MAX).map(|(k, s)| (k, s.drawn_by)).collect()
+    steps
+        .iter()
+        .enumerate()
+        .filter(|(_, s)| s.drawn_by != u32::MAX)
+        .map(|(k, s)| (k, s.drawn_by))
+        .collect()
 }
 
 #[cfg(test)]
@@ -360,7 +383,11 @@ mod tests {
 
     #[test]
     fn lattice_ranges() {
-        let l = Lattice { origin: [0.0; 3], s: 1.0, n: [10, 10, 10] };
+        let l = Lattice {
+            origin: [0.0; 3],
+            s: 1.0,
+            n: [10, 10, 10],
+        };
         assert_eq!(l.range(0, 0.0, 10.0), Some((0, 9)));
         assert_eq!(l.range(0, 2.0, 4.0), Some((2, 3)));
         assert_eq!(l.range(0, 2.6, 2.9), None);
