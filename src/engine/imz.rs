@@ -559,7 +559,9 @@ mod tests {
         // Slope at the minimum positive slope 45 + φ/2: r = 0.
         let phi: f64 = 40.0;
         let dr = 1.0 / (45.0 + phi / 2.0).to_radians().tan();
-        assert_eq!(r_law(0.2, 1.0, 2.0 + dr, 2.0, phi, 3.5), 0.0);
+        // (The bracket is 1 − dr tan β, zero up to rounding, so r is zero up to ~1e-16^q.)
+        assert!(r_law(0.2, 1.0, 2.0 + dr, 2.0, phi, 3.5) < 1e-50);
+        assert_eq!(r_law(0.2, 1.0, 2.0 + 1.001 * dr, 2.0, phi, 3.5), 0.0);
         // Vertical wall: the bare factor 10 d h / (π R²).
         let r = r_law(0.1, 0.5, 3.0, 3.0, 40.0, 3.5);
         assert!((r - 10.0 * 0.1 * 0.5 / (PI * 9.0)).abs() < 1e-15);

@@ -16,7 +16,10 @@
 //!   dilating ring gains, ΔR_i (n1 − n0)/(1 − n1). The summary prints the factor inverted,
 //!   (1 − n1)/(n1 − n0); taken literally that moves a marker of a new disk (R^old = 0) by
 //!   ~3.7 R across the axis, and diverges as the porosity jump vanishes, so we use the
-//!   volume-balance form (`tests::radial_move_is_the_ring_dilation`).
+//!   volume-balance form (`tests::radial_move_is_the_ring_dilation`). The peak is capped at
+//!   R_i^old: the profile is linear from the axis, so a larger peak would carry interior
+//!   markers across the axis; a new disk (R^old = 0) has no interior to push and moves
+//!   nothing radially.
 //! - Transfer into a narrower disk below (R_{i−1} < R_i): Δa′ = −(1 − R_{i−1}/R_i) a_m and
 //!   Δz′ = −p (R_i² − R_{i−1}²)/R_{i−1}², p the depth reached below the disk base z_i (this
 //!   is the summary's Δz′ with its Δz cancelled).
@@ -244,7 +247,8 @@ pub fn radial(r_old: f64, r_new: f64, jump: f64, n1: f64, a: f64) -> f64 {
     if dr <= 0.0 || a > r_new {
         return 0.0;
     }
-    let peak = dr * jump / (1.0 - n1);
+    // Capped at R_old: the interior cannot be pushed past the axis.
+    let peak = (dr * jump / (1.0 - n1)).min(r_old);
     if a > r_old {
         -peak * (1.0 - (a - r_old) / dr)
     } else if r_old > 0.0 {
