@@ -32,6 +32,15 @@
 //! - **Unflowable perimeter.** Points in uncaved blocks or outside the model cannot
 //!   dilate; the fraction f of flowable points scales the area that can grow:
 //!   R_i ← sqrt(R_i² + r v_i / (π h (n1 − n0) f)); with f = 0 the disk cannot widen (r = 0).
+//!   A disk that reaches `r_cap` widens no further and passes the rest of its void up.
+//! - **Integration.** r depends on R_i, which grows as the void is taken, so within a disk
+//!   the law is integrated over the void (d(R_i²) = r(R_i) dv / (π h Δn f)) in sub-steps
+//!   small against the distance over which r changes (`Imz::absorb`). The void a disk
+//!   takes is then exactly the dilation of the ring it gains, r falls to zero as the
+//!   boundary reaches 45 + φ/2 (never past it), and a new top disk stops where the law says
+//!   instead of swallowing a whole cycle. Evaluating r once per cycle let new and small
+//!   disks (r = 1) overshoot by up to ~1.6 × the opening radius per cycle; the IMZ then
+//!   widened upward like a funnel at fine h, and its width did not converge as h shrank.
 
 use std::f64::consts::PI;
 
@@ -428,7 +437,11 @@ impl Imz {
 
     /// Draws `tonnes` from the drawpoint, growing the IMZ. The void opened is the tonnes
     /// over the dilated bulk density ρ_s (1 − n1) at the drawpoint; it is passed up in cycles
-    /// of at most a quarter of the lowest disk's volume.
+    /// of at most a sixteenth of the lowest disk's volume. Within a cycle each disk takes
+    /// its share with the disk below already grown, a splitting error of first order in the
+    /// cycle size: at a sixteenth the IMZ width is within ~2% of the small-cycle limit
+    /// early in a draw (a quarter: ~5%), and less as the IMZ grows
+    /// (`tests::growth_conserves_void_respects_the_base_angle_and_converges_with_cycle_size`).
     pub fn draw(&mut self, tonnes: f64, g: &Ground, p: &ImzParams) {
         self.refresh_stagnant(0, g, p);
         let (_, _, rho1) = self.props(0);
@@ -438,7 +451,7 @@ impl Imz {
         }
         let v0 = tonnes / rho1;
         let r0 = self.geom.radius[0];
-        let cycle = 0.25 * PI * r0 * r0 * self.geom.h;
+        let cycle = 0.0625 * PI * r0 * r0 * self.geom.h;
         let n = ((v0 / cycle).ceil() as usize).max(1);
         for _ in 0..n {
             self.pass(v0 / n as f64, g, p);
@@ -475,27 +488,81 @@ impl Imz {
                 self.geom.radius[i - 1]
             };
             let st = self.stagnant[i];
-            let mut r = if st.flow_frac > 0.0 {
+            self.motion[i].dv += v;
+            let r = if st.flow_frac > 0.0 {
                 r_law(d, h, self.geom.radius[i], r_below, phi, p.q)
             } else {
                 0.0
             };
-            // The remainder of a cycle that has all but vanished is absorbed here, so the
-            // cycle ends and the void is conserved.
-            if (1.0 - r) * v <= 1e-12 * v0 && st.flow_frac > 0.0 {
-                r = 1.0;
-            }
-            self.motion[i].dv += v;
             if r > 0.0 {
                 let jump = self.usable_jump(i, g, p);
                 let f = self.stagnant[i].flow_frac;
-                self.geom.radius[i] =
-                    grown_radius(self.geom.radius[i], r, v, h, jump, f).min(p.r_cap);
                 self.motion[i].jump = jump;
+                if f > 0.0 {
+                    v = self.absorb(i, v, r_below, d, phi, jump, f, p);
+                    // The remainder of a cycle that has all but vanished is absorbed here,
+                    // so the cycle ends and the void is conserved.
+                    if v <= 1e-12 * v0 {
+                        let k = PI * h * jump * f;
+                        let r_i = self.geom.radius[i];
+                        self.geom.radius[i] = (r_i * r_i + v / k).sqrt().min(p.r_cap);
+                        v = 0.0;
+                    }
+                }
             }
-            v *= 1.0 - r;
             i += 1;
         }
+    }
+
+    /// Fills void `v` entering disk i by the r-law and returns the void passed up to disk
+    /// i + 1.
+    ///
+    /// r depends on R_i, which grows as the void is taken, so the law is integrated over
+    /// the void, d(R_i²) = r(R_i) dv / (π h Δn f), in sub-steps over which R_i moves by at
+    /// most a tenth of the distance on which r changes (d ln r / dR = −2/R − q tan β / (h ·
+    /// bracket)). Evaluating r once per cycle instead lets a new or small disk (r = 1) take
+    /// a whole cycle's void: it then overshoots both the 45 + φ/2 limit, where r must reach
+    /// zero, and the disk below, and the IMZ shape depends on h and the cycle size. Far
+    /// from the top (r small, R large) this is a single step, the plain update.
+    #[allow(clippy::too_many_arguments)]
+    fn absorb(
+        &mut self,
+        i: usize,
+        v: f64,
+        r_below: f64,
+        d: f64,
+        phi: f64,
+        jump: f64,
+        f: f64,
+        p: &ImzParams,
+    ) -> f64 {
+        let h = self.geom.h;
+        let tan = (45.0 + 0.5 * phi).to_radians().tan();
+        let k = PI * h * jump * f;
+        let mut big_r = self.geom.radius[i];
+        let (mut rem, mut passed) = (v, 0.0);
+        while rem > 0.0 {
+            let r = r_law(d, h, big_r, r_below, phi, p.q);
+            if r <= 0.0 {
+                passed += rem;
+                break;
+            }
+            let bracket = (1.0 - (big_r - r_below) * tan / h).max(1e-12);
+            let rate = p.q * tan / (h * bracket) + if big_r > 0.0 { 2.0 / big_r } else { 0.0 };
+            let dr = (0.1 / rate).max(1e-9 * h);
+            let dv = rem.min(k * ((big_r + dr).powi(2) - big_r * big_r) / r);
+            big_r = (big_r * big_r + r * dv / k).sqrt();
+            passed += (1.0 - r) * dv;
+            rem -= dv;
+            if big_r >= p.r_cap {
+                // Nothing beyond the cap can dilate: the rest goes up.
+                big_r = p.r_cap;
+                passed += rem;
+                break;
+            }
+        }
+        self.geom.radius[i] = big_r;
+        passed
     }
 
     /// The porosity jump disk i can use, widening the disk for free across ground that is
@@ -575,5 +642,71 @@ mod tests {
         let (r0, r, v, h, dn) = (2.0, 0.3, 5.0, 0.5, 0.15);
         let r1 = grown_radius(r0, r, v, h, dn, 1.0);
         assert!((PI * h * dn * (r1 * r1 - r0 * r0) - r * v).abs() < 1e-12);
+    }
+
+    /// Draws void `v` into a fresh isolated Castro IMZ (8.3 mm, 120 mm opening, h = 25 mm)
+    /// in `cycles` equal cycles.
+    fn grow(v: f64, cycles: usize) -> Imz {
+        let scene = crate::model::synthetic::UniformBox::castro_isolated().scene();
+        let grid = ImzGrid::build(&[], &[], [-0.6, -0.6], [1.2, 1.2], 0.05);
+        let g = Ground {
+            blocks: &scene.blocks,
+            period: 1,
+            geoms: &[],
+            grid: &grid,
+        };
+        let p = ImzParams {
+            q: 3.5,
+            shear_band_factor: 10.0,
+            min_jump: 0.005,
+            resample: 0.00625,
+            r_cap: 1.7,
+        };
+        let mut imz = Imz::new(0, 0.0, 0.0, 0.0, 0.025, 0.12);
+        for _ in 0..cycles {
+            imz.pass(v / cycles as f64, &g, &p);
+        }
+        imz
+    }
+
+    #[test]
+    fn growth_conserves_void_respects_the_base_angle_and_converges_with_cycle_size() {
+        let v = 0.004; // m³, about 6 kg at dilated density
+        let (h, dn, r_open) = (0.025, 0.1, 0.06);
+        let max_step = h / 65f64.to_radians().tan();
+        // The engine's cycle is a sixteenth of the opening disk, ~2.5e-5 m³ here: 160
+        // cycles. Then 4 and 16 times finer cycles.
+        let runs: Vec<Imz> = [160, 640, 2560].iter().map(|&c| grow(v, c)).collect();
+        for imz in &runs {
+            // All the void went into dilating the ring the disks gained (Δn = 0.1):
+            // Σ π h Δn (R_i² − R_i,0²) = v, the opening disk starting at the opening radius.
+            let dilated: f64 = imz
+                .geom
+                .radius
+                .iter()
+                .enumerate()
+                .map(|(i, &r)| PI * h * dn * (r * r - if i == 0 { r_open * r_open } else { 0.0 }))
+                .sum();
+            assert!((dilated - v).abs() < 1e-9 * v, "dilated {dilated} vs {v}");
+            // r = 0 at the slope 45 + φ/2: no disk steps out further than h / tan 65°.
+            let mut below = r_open;
+            for &r in &imz.geom.radius {
+                assert!(
+                    r - below <= max_step * (1.0 + 1e-9),
+                    "step {} > {max_step}",
+                    r - below
+                );
+                below = r;
+            }
+        }
+        // The r-law is integrated within each disk, so the IMZ converges with the cycle
+        // size: the width changes less with each refinement, and the engine's cycle is
+        // within 2.5% of the finest (1.9% measured at this early, 6 kg stage; a whole-void
+        // single cycle is 25% off, and before the integration a single cycle overshot the
+        // base angle).
+        let w: Vec<f64> = runs.iter().map(|m| m.geom.max_radius()).collect();
+        assert!((w[1] - w[2]).abs() < (w[0] - w[1]).abs(), "{w:?}");
+        assert!((w[0] / w[2] - 1.0).abs() < 0.025, "{w:?}");
+        assert!(runs[0].disks().abs_diff(runs[2].disks()) <= 1);
     }
 }
