@@ -164,7 +164,11 @@ impl<'a> Engine<'a> {
         let scene = self.scene;
         let period = scene.periods.id[p];
         let bm = &scene.blocks;
-        if p == 0 || bm.cave_period.iter().any(|&c| c == period) {
+        // Ground that caved since the previous period (period numbers need not be
+        // consecutive: a block caving at a number between two listed periods is flowable
+        // from the later one).
+        let prev = if p == 0 { i64::MIN } else { scene.periods.id[p - 1] };
+        if p == 0 || bm.cave_period.iter().any(|&c| c > prev && c <= period) {
             // Newly caved ground: perimeters and engulfment must be looked at again.
             for imz in &mut self.imzs {
                 imz.r_engulfed.iter_mut().for_each(|r| *r = 0.0);
