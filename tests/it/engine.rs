@@ -1,7 +1,13 @@
-//! Integration tests: the flow engine against conservation laws, closed forms and the
-//! summary's published behaviour.
+//! Integration tests: the flow engine against conservation laws and the summary's published
+//! behaviour (DESIGN §7). Every scene is a [`UniformBox`] at a coarse, explicit resolution
+//! (never the automatic one, so a change of default cannot make these slow or move their
+//! numbers); each tolerance says where it comes from. Each test prints what it measured
+//! (`cargo test ... engine:: -- --nocapture`).
 
-use caveflow::engine::{Engine, RunOutput};
+use std::collections::{BTreeMap, HashMap, HashSet};
+
+use caveflow::engine::markers::Lattice;
+use caveflow::engine::{Engine, MarkerState, RunOutput};
 use caveflow::model::synthetic::UniformBox;
 use caveflow::model::{Scenario, Scene};
 
@@ -9,38 +15,908 @@ pub fn run(scene: &Scene, sc: &Scenario) -> RunOutput {
     Engine::new(scene, sc).unwrap().run(&mut |_, _| {})
 }
 
-/// Max radius and height of the IMZ of drawpoint 0 at the end.
-fn imz_profile(out: &RunOutput) -> Vec<(f64, f64)> {
-    let last = *out.imz.period.last().unwrap();
-    (0..out.imz.radius.len())
-        .filter(|&k| out.imz.period[k] == last && out.imz.drawpoint[k] == 0)
-        .map(|k| (out.imz.z_top[k], out.imz.radius[k]))
+/// A scenario at an explicit resolution: disk thickness `h`, marker spacing `s`, draw
+/// increment `inc` (t per drawpoint per step).
+fn scenario(h: f64, s: f64, inc: f64) -> Scenario {
+    let mut sc = Scenario::default();
+    sc.resolution.layer_thickness = Some(h);
+    sc.resolution.marker_spacing = Some(s);
+    sc.resolution.draw_increment = Some(inc);
+    sc
+}
+
+/// Sets a schedule of cumulative tonnes per period (same for every drawpoint).
+fn cumulative_schedule(scene: &mut Scene, cum: &[f64]) {
+    let nd = scene.drawpoints.len();
+    scene.periods.id = (1..=cum.len() as i64).collect();
+    scene.periods.name = scene.periods.id.iter().map(|p| p.to_string()).collect();
+    scene.periods.days = vec![1.0; cum.len()];
+    scene.schedule.tonnes = (0..cum.len())
+        .flat_map(|p| {
+            let t = cum[p] - if p == 0 { 0.0 } else { cum[p - 1] };
+            std::iter::repeat_n(t, nd)
+        })
+        .collect();
+}
+
+/// The disks (z_base, z_top, radius) of drawpoint `dp` at the end of `period`, bottom up.
+fn disks(out: &RunOutput, dp: u32, period: i64) -> Vec<(f64, f64, f64)> {
+    let t = &out.imz;
+    (0..t.radius.len())
+        .filter(|&k| t.drawpoint[k] == dp && t.period[k] == period)
+        .map(|k| (t.z_base[k], t.z_top[k], t.radius[k]))
+        .collect()
+}
+
+/// Radius of a disk list at elevation z (0 outside the IMZ).
+fn radius_at(d: &[(f64, f64, f64)], z: f64) -> f64 {
+    d.iter().find(|x| x.0 <= z && z < x.1).map_or(0.0, |x| x.2)
+}
+
+/// Least-squares slope of y on x.
+fn ls_slope(pts: &[(f64, f64)]) -> f64 {
+    let n = pts.len() as f64;
+    let mx = pts.iter().map(|p| p.0).sum::<f64>() / n;
+    let my = pts.iter().map(|p| p.1).sum::<f64>() / n;
+    let sxy: f64 = pts.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum();
+    let sxx: f64 = pts.iter().map(|p| (p.0 - mx).powi(2)).sum();
+    sxy / sxx
+}
+
+// ---------------------------------------------------------------------------------------
+// 1. Conservation
+// ---------------------------------------------------------------------------------------
+
+/// A 1.2 × 0.6 × 1.5 m box of Castro material with three drawpoints on the x axis:
+/// - DP01 (x = −0.35) and DP02 (x = −0.05), whose IMZs overlap (superposition);
+/// - DP03 (x = 0.45) under a pillar that never caves (x > 0.25): scheduled but undrawable.
+///
+/// The cave back is at z = 1.0 m until period 5 (an air gap forms under it), and the strip
+/// 0.1 < x < 0.25 caves at period 3, which is not in the period list (ids 1, 2, 4, 5, 6,
+/// 7), so it becomes flowable at period 4, inside IMZ disks that had already grown past it.
+fn caving_scene() -> Scene {
+    let b = UniformBox {
+        extent: [1.2, 0.6, 1.5],
+        drawpoints: vec![(-0.35, 0.0, 0.12), (-0.05, 0.0, 0.12), (0.45, 0.0, 0.12)],
+        periods: 6,
+        tonnes: 0.012,
+        ..UniformBox::castro_isolated()
+    };
+    let mut scene = b.scene();
+    scene.periods.id = vec![1, 2, 4, 5, 6, 7];
+    let bm = &mut scene.blocks;
+    for k in 0..bm.len() {
+        bm.cave_period[k] = if bm.x[k] > 0.25 {
+            1000
+        } else if bm.x[k] > 0.1 {
+            3
+        } else if bm.z[k] > 1.0 {
+            5
+        } else {
+            0
+        };
+    }
+    scene
+}
+
+fn caving_scenario() -> Scenario {
+    let mut sc = scenario(0.05, 0.025, 0.001);
+    sc.outputs.marker_periods = vec![1, 2, 4, 5, 6, 7];
+    sc
+}
+
+#[test]
+fn conservation_of_tonnes_and_markers() {
+    let scene = caving_scene();
+    let sc = caving_scenario();
+    let out = run(&scene, &sc);
+    let bm = &scene.blocks;
+    let ex = &out.extraction;
+    let s = sc.resolution.marker_spacing.unwrap();
+
+    // Tonnes. Discrete markers never match the schedule exactly, so each period's marker
+    // tonnes are scaled by a correction factor bounded to [0.1, 2] (MassFlow) and what
+    // the bound cannot credit is carried. Over the run the credited tonnes of a drawable
+    // drawpoint must equal its schedule to 0.5% (the issue's tolerance; the carry makes it
+    // exact unless the factor saturates, which it must not at these ~10³-marker periods).
+    for (d, &(sched, credited)) in out.balance.per_drawpoint.iter().enumerate().take(2) {
+        let ratio = credited / sched;
+        eprintln!(
+            "DP{:02}: scheduled {sched:.4} t, credited {credited:.4} t, ratio {ratio:.6}",
+            d + 1
+        );
+        assert!(
+            (ratio - 1.0).abs() <= 0.005,
+            "DP{:02} credited/scheduled = {ratio}",
+            d + 1
+        );
+    }
+    for k in 0..ex.tonnes.len() {
+        let c = ex.correction[k];
+        assert!(
+            (0.1..=2.0).contains(&c),
+            "row {k}: correction {c} outside [0.1, 2]"
+        );
+        // The credited tonnes are the marker tonnes times the factor, row by row.
+        assert!((ex.tonnes[k] - c * ex.marker_tonnes[k]).abs() <= 1e-12);
+    }
+    let (cmin, cmax) = ex
+        .correction
+        .iter()
+        .fold((f64::MAX, f64::MIN), |a, &c| (a.0.min(c), a.1.max(c)));
+    eprintln!("correction factors in [{cmin:.3}, {cmax:.3}]");
+
+    // The drawpoint under the pillar is reported, not hidden: every one of its rows is
+    // `short` with nothing credited, its shortfall is the whole schedule, and the run warns.
+    let dp3: Vec<usize> = (0..ex.drawpoint.len())
+        .filter(|&k| ex.drawpoint[k] == 2)
+        .collect();
+    assert_eq!(dp3.len(), scene.periods.len());
+    assert!(dp3
+        .iter()
+        .all(|&k| ex.status[k] == "short" && ex.tonnes[k] == 0.0 && ex.markers[k] == 0));
+    let (sched3, credited3) = out.balance.per_drawpoint[2];
+    assert_eq!(credited3, 0.0);
+    assert!((ex.shortfall_tonnes[*dp3.last().unwrap()] - sched3).abs() <= 1e-12);
+    assert!(
+        out.warnings
+            .iter()
+            .any(|w| w.contains("DP03") && w.contains("not caved")),
+        "{:?}",
+        out.warnings
+    );
+    assert!(
+        out.warnings
+            .iter()
+            .any(|w| w.contains("DP03") && w.contains("could not deliver")),
+        "{:?}",
+        out.warnings
+    );
+    // The scene does what it says: DP01 and DP02 reach the cave back before it caves (an
+    // air gap is reported by period 4), and the run warns about it.
+    let air_by_4 = (0..ex.tonnes.len())
+        .filter(|&k| ex.drawpoint[k] < 2 && ex.period[k] <= 4)
+        .map(|k| ex.air_gap[k])
+        .fold(0.0, f64::max);
+    eprintln!("air gap under the cave back by period 4: {air_by_4:.2e} m³");
+    assert!(air_by_4 > 0.0);
+    assert!(out.warnings.iter().any(|w| w.contains("air gap")));
+    // Run totals: credited + what is still owed = scheduled.
+    let b = &out.balance;
+    assert!((b.credited_tonnes + b.final_shortfall_tonnes - b.scheduled_tonnes).abs() <= 1e-9);
+
+    // Markers: none lost or duplicated.
+    let n_drawn: i64 = ex.markers.iter().sum();
+    assert_eq!(
+        out.drawn.marker_id.len() as i64,
+        n_drawn,
+        "drawn table vs extraction `markers`"
+    );
+    assert_eq!(b.markers_drawn as i64, n_drawn);
+    let drawn_ids: HashSet<i64> = out.drawn.marker_id.iter().cloned().collect();
+    assert_eq!(
+        drawn_ids.len(),
+        out.drawn.marker_id.len(),
+        "a marker was drawn twice"
+    );
+    let mass_of_block: Vec<f64> = (0..bm.len())
+        .map(|k| bm.size.iter().product::<f64>() * bm.density[k] * (1.0 - bm.n0[k]))
+        .collect();
+    let block_row: HashMap<i64, usize> = (0..bm.len()).map(|k| (bm.id[k], k)).collect();
+    let mut last_drawn = 0;
+    for snap in &out.snapshots {
+        let p = snap.period;
+        // Ids (moving + drawn) strictly increasing: unique.
+        assert!(
+            snap.marker_id.windows(2).all(|w| w[0] < w[1]),
+            "period {p}: duplicated marker id"
+        );
+        let drawn_now = snap
+            .state
+            .iter()
+            .filter(|&&x| x == MarkerState::Drawn)
+            .count();
+        assert!(
+            drawn_now >= last_drawn,
+            "period {p}: drawn markers went missing"
+        );
+        last_drawn = drawn_now;
+        let n_rows: i64 = (0..ex.period.len())
+            .filter(|&k| ex.period[k] <= p)
+            .map(|k| ex.markers[k])
+            .sum();
+        assert_eq!(
+            drawn_now as i64, n_rows,
+            "period {p}: drawn markers vs extraction rows"
+        );
+        // Mobilised mass per block never exceeds the block's in-situ mass.
+        let mut per_block: HashMap<i64, f64> = HashMap::new();
+        for k in 0..snap.marker_id.len() {
+            *per_block.entry(snap.block_id[k]).or_default() += snap.mass[k];
+        }
+        for (id, m) in &per_block {
+            let cap = mass_of_block[block_row[id]];
+            assert!(
+                *m <= cap * (1.0 + 1e-9),
+                "period {p}: block {id} mobilised {m} t > {cap} t"
+            );
+        }
+        // Moving markers: inside the model, never above its top, and only in ground that
+        // is flowable in this period.
+        for k in 0..snap.marker_id.len() {
+            if snap.state[k] != MarkerState::Moving {
+                continue;
+            }
+            let q = [snap.x[k], snap.y[k], snap.z[k]];
+            assert!(
+                q[2] <= bm.z_max(),
+                "period {p}: marker {} above the model",
+                snap.marker_id[k]
+            );
+            assert!(
+                q[2] <= snap.origin_z[k],
+                "period {p}: marker {} moved up",
+                snap.marker_id[k]
+            );
+            let blk = bm.locate(q).unwrap_or_else(|| {
+                panic!(
+                    "period {p}: marker {} left the model at {q:?}",
+                    snap.marker_id[k]
+                )
+            });
+            assert!(
+                bm.flowable(blk, p),
+                "period {p}: marker {} in unflowable block {}",
+                snap.marker_id[k],
+                bm.id[blk]
+            );
+        }
+    }
+    let last = out.snapshots.last().unwrap();
+    assert_eq!(last.marker_id.len() as u64, b.markers_mobilised);
+    let total_block_mass: f64 = mass_of_block.iter().sum();
+    let mobilised_mass: f64 = last.mass.iter().sum();
+    assert!(mobilised_mass <= total_block_mass);
+    eprintln!(
+        "markers: {} mobilised ({mobilised_mass:.4} t of {total_block_mass:.3} t), {} drawn",
+        b.markers_mobilised, b.markers_drawn
+    );
+
+    // And none missing: at the end of every period, every lattice site inside an IMZ, in
+    // ground flowable in that period, has been mobilised (a site skipped while its block
+    // was uncaved must be engulfed once it caves, even when it caves between two listed
+    // periods). Sites within 1e-9 m of a disk boundary are left out (rounding decides
+    // those either way).
+    let lat = Lattice::new(bm, s);
+    let mut checked = 0;
+    for snap in &out.snapshots {
+        let p = snap.period;
+        let ids: HashSet<i64> = snap.marker_id.iter().cloned().collect();
+        for dp in 0..2u32 {
+            let dk = disks(&out, dp, p);
+            let (x0, y0) = (
+                scene.drawpoints.x[dp as usize],
+                scene.drawpoints.y[dp as usize],
+            );
+            for id in 0..lat.len() {
+                let q = lat.pos(id);
+                let Some(&(zb, zt, r)) = dk.iter().find(|x| x.0 <= q[2] && q[2] < x.1) else {
+                    continue;
+                };
+                let a = ((q[0] - x0).powi(2) + (q[1] - y0).powi(2)).sqrt();
+                if a > r - 1e-9 || q[2] - zb < 1e-9 || zt - q[2] < 1e-9 {
+                    continue;
+                }
+                let Some(blk) = bm.locate(q) else { continue };
+                if !bm.flowable(blk, p) {
+                    continue;
+                }
+                checked += 1;
+                assert!(
+                    ids.contains(&(id as i64)),
+                    "period {p}: site {id} at {q:?} (block caved at {}) is inside DP{:02}'s IMZ but was never mobilised",
+                    bm.cave_period[blk],
+                    dp + 1
+                );
+            }
+        }
+    }
+    eprintln!("{checked} (site, period) pairs inside IMZs checked mobilised");
+}
+
+// ---------------------------------------------------------------------------------------
+// 2. Determinism
+// ---------------------------------------------------------------------------------------
+
+fn bits(v: &[f64]) -> Vec<u64> {
+    v.iter().map(|x| x.to_bits()).collect()
+}
+
+/// Compares two runs field by field, f64 bitwise.
+fn assert_identical(a: &RunOutput, b: &RunOutput, what: &str) {
+    macro_rules! same {
+        ($t:ident . $f:ident) => {
+            assert_eq!(
+                a.$t.$f,
+                b.$t.$f,
+                "{what}: {}.{} differ",
+                stringify!($t),
+                stringify!($f)
+            );
+        };
+        (f $t:ident . $f:ident) => {
+            assert_eq!(
+                bits(&a.$t.$f),
+                bits(&b.$t.$f),
+                "{what}: {}.{} differ",
+                stringify!($t),
+                stringify!($f)
+            );
+        };
+    }
+    same!(extraction.drawpoint);
+    same!(extraction.period);
+    same!(f extraction.scheduled_tonnes);
+    same!(f extraction.marker_tonnes);
+    same!(f extraction.correction);
+    same!(f extraction.tonnes);
+    same!(f extraction.shortfall_tonnes);
+    same!(f extraction.cum_tonnes);
+    same!(extraction.markers);
+    same!(f extraction.dilution);
+    same!(f extraction.origin_z);
+    same!(f extraction.hod);
+    same!(f extraction.frag_size);
+    same!(f extraction.fines_share);
+    same!(f extraction.air_gap);
+    same!(extraction.status);
+    let g = |o: &RunOutput| {
+        o.extraction
+            .grades
+            .iter()
+            .chain(&o.extraction.lithology)
+            .map(|c| bits(c))
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(g(a), g(b), "{what}: grades/lithology differ");
+    same!(imz.drawpoint);
+    same!(imz.period);
+    same!(imz.disk);
+    same!(f imz.z_base);
+    same!(f imz.z_top);
+    same!(f imz.radius);
+    same!(drawn.marker_id);
+    same!(drawn.drawpoint);
+    same!(drawn.period);
+    same!(f drawn.origin_x);
+    same!(f drawn.origin_y);
+    same!(f drawn.origin_z);
+    same!(f drawn.mass);
+    same!(drawn.block_id);
+    same!(f drawn.frag_size);
+    assert_eq!(a.snapshots.len(), b.snapshots.len());
+    for (s, t) in a.snapshots.iter().zip(&b.snapshots) {
+        assert_eq!(s.period, t.period);
+        assert_eq!(s.marker_id, t.marker_id, "{what}: snapshot ids differ");
+        for (u, v, f) in [
+            (&s.x, &t.x, "x"),
+            (&s.y, &t.y, "y"),
+            (&s.z, &t.z, "z"),
+            (&s.origin_x, &t.origin_x, "origin_x"),
+            (&s.origin_y, &t.origin_y, "origin_y"),
+            (&s.origin_z, &t.origin_z, "origin_z"),
+            (&s.porosity, &t.porosity, "porosity"),
+            (&s.mass, &t.mass, "mass"),
+            (&s.frag_size, &t.frag_size, "frag_size"),
+            (&s.shear_strain, &t.shear_strain, "shear_strain"),
+            (&s.shear_work, &t.shear_work, "shear_work"),
+        ] {
+            assert_eq!(
+                bits(u),
+                bits(v),
+                "{what}: snapshot {} {f} differs",
+                s.period
+            );
+        }
+        assert_eq!(s.block_id, t.block_id);
+        assert_eq!(s.state, t.state);
+        assert_eq!(s.drawpoint, t.drawpoint);
+        assert_eq!(s.drawn_period, t.drawn_period);
+    }
+    assert_eq!(a.warnings, b.warnings, "{what}: warnings differ");
+    assert_eq!(a.resolution, b.resolution);
+    let mb = |o: &RunOutput| serde_json::to_string(&o.balance).unwrap();
+    assert_eq!(mb(a), mb(b), "{what}: mass balance differs");
+}
+
+#[test]
+fn runs_are_deterministic_across_repeats_and_thread_counts() {
+    // The conservation scene: overlapping IMZs (superposition in the parallel marker
+    // pass), an air gap, late caving and a blocked drawpoint.
+    let scene = caving_scene();
+    let sc = caving_scenario();
+    let a = run(&scene, &sc);
+    let b = run(&scene, &sc);
+    assert_identical(&a, &b, "two runs");
+    for threads in [1, 2] {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        let c = pool.install(|| run(&scene, &sc));
+        assert_identical(&a, &c, &format!("{threads}-thread pool"));
+    }
+    eprintln!(
+        "{} extraction rows, {} IMZ rows, {} drawn markers identical",
+        a.extraction.tonnes.len(),
+        a.imz.radius.len(),
+        a.drawn.marker_id.len()
+    );
+}
+
+// ---------------------------------------------------------------------------------------
+// 3. Isolated draw at Castro scale (summary §3.4, Simulation 2)
+// ---------------------------------------------------------------------------------------
+
+/// Cumulative tonnes of the isolated growth runs: ×1.5 per period, 5 kg to 128 kg.
+const GROWTH_CUM: [f64; 9] = [
+    0.005, 0.0075, 0.01125, 0.0169, 0.0253, 0.038, 0.057, 0.0854, 0.128,
+];
+
+/// The isolated Castro scene with mean fragment size `frag`, drawn to [`GROWTH_CUM`]; h =
+/// 25 mm, markers 25 mm, 0.4 kg increments.
+fn isolated_growth(frag: f64) -> (Scene, Scenario, RunOutput) {
+    let b = UniformBox {
+        frag,
+        ..UniformBox::castro_isolated()
+    };
+    let mut scene = b.scene();
+    cumulative_schedule(&mut scene, &GROWTH_CUM);
+    let sc = scenario(0.025, 0.025, 0.0004);
+    let out = run(&scene, &sc);
+    (scene, sc, out)
+}
+
+/// (H, W) per period: IMZ height (top of the top disk) and largest diameter, for the
+/// periods whose IMZ is in the far field (H/d̄ ≥ 100) and has not reached the model top.
+fn far_field_growth(scene: &Scene, out: &RunOutput, frag: f64) -> Vec<(f64, f64)> {
+    let top = scene.blocks.z_max();
+    let h = out.resolution.layer_thickness;
+    scene
+        .periods
+        .id
+        .iter()
+        .map(|&p| {
+            let d = disks(out, 0, p);
+            let hh = d.iter().map(|x| x.1).fold(0.0, f64::max);
+            let w = 2.0 * d.iter().map(|x| x.2).fold(0.0, f64::max);
+            (hh, w)
+        })
+        .filter(|&(hh, _)| hh / frag >= 100.0 && hh < top - h)
         .collect()
 }
 
 #[test]
-fn explore_isolated() {
-    let mut b = UniformBox::castro_isolated();
-    if let Ok(t) = std::env::var("T") { b.tonnes = t.parse().unwrap(); }
+fn isolated_far_field_width_grows_as_sqrt_d_h() {
+    let d1 = 0.0083;
+    let (scene, _, out) = isolated_growth(d1);
+    let g1 = far_field_growth(&scene, &out, d1);
+    for (hh, w) in &g1 {
+        eprintln!(
+            "d̄ {d1}: H {hh:.3} m (H/d̄ {:.0}), W {w:.4} m, W/√(d̄H) {:.2}",
+            hh / d1,
+            w / (d1 * hh).sqrt()
+        );
+    }
+    // Kinematic theory (Nedderman 1995, summary Fig. 7): far-field W ∝ √(d̄ H). In REBOP
+    // the r-law removes a share 10 d̄/(π R²) of the void per unit height, which makes
+    // R²/(d̄ H) a similarity variable; the slope bracket (1 − tan β · dR/dz)^q breaks the
+    // similarity by terms of order q tan β √(d̄/H), so the exponent approaches 0.5 from
+    // above as H/d̄ grows. Measured fits over H/d̄ ≈ 120–340: 0.512, 0.505, 0.488 at h = 50,
+    // 25, 12.5 mm (local exponents 0.47–0.59); for 2 d̄ (H/d̄ 100–190) 0.55–0.57. The
+    // issue's ±0.1 covers the resolution and the near-field remainder.
+    assert!(g1.len() >= 5, "too few far-field points: {g1:?}");
+    let pts: Vec<(f64, f64)> = g1.iter().map(|&(hh, w)| (hh.ln(), w.ln())).collect();
+    let exponent = ls_slope(&pts);
+    eprintln!(
+        "W ∝ H^{exponent:.3} over H/d̄ {:.0}–{:.0} ({} points)",
+        g1[0].0 / d1,
+        g1.last().unwrap().0 / d1,
+        g1.len()
+    );
+    assert!(
+        (exponent - 0.5).abs() <= 0.1,
+        "far-field exponent {exponent}"
+    );
+
+    // Doubling d̄ widens the IMZ: at the same drawn mass, and at the same height. At the
+    // same height √(d̄ H) predicts a ratio of √2; the coarser material is nearer its near
+    // field (H/d̄ 100–200), so the ratio is checked to lie between 1.2 and 1.6.
+    let d2 = 2.0 * d1;
+    let (scene2, _, out2) = isolated_growth(d2);
+    for &p in &scene.periods.id {
+        let w = |o: &RunOutput| 2.0 * disks(o, 0, p).iter().map(|x| x.2).fold(0.0, f64::max);
+        assert!(
+            w(&out2) > w(&out),
+            "period {p}: W(2d̄) {} ≤ W(d̄) {}",
+            w(&out2),
+            w(&out)
+        );
+    }
+    let g2 = far_field_growth(&scene2, &out2, d2);
+    assert!(!g2.is_empty());
+    let mut ratios = Vec::new();
+    for &(hh, w2) in &g2 {
+        // W(d̄) at the same H, interpolated log-linearly between the bracketing periods.
+        let Some(k) = g1.windows(2).position(|x| x[0].0 <= hh && hh <= x[1].0) else {
+            continue;
+        };
+        let (a, b) = (g1[k], g1[k + 1]);
+        let t = (hh / a.0).ln() / (b.0 / a.0).ln();
+        let w1 = (a.1.ln() + t * (b.1 / a.1).ln()).exp();
+        eprintln!(
+            "H {hh:.3}: W(2d̄) {w2:.4} / W(d̄) {w1:.4} = {:.3} (√2 = 1.414)",
+            w2 / w1
+        );
+        ratios.push(w2 / w1);
+    }
+    assert!(!ratios.is_empty());
+    assert!(ratios.iter().all(|r| (1.2..=1.6).contains(r)), "{ratios:?}");
+}
+
+#[test]
+fn isolated_base_angle_and_iez_inside_imz() {
+    let d = 0.0083;
+    let (scene, sc, out) = isolated_growth(d);
+    let h = out.resolution.layer_thickness;
+    let s = sc.resolution.marker_spacing.unwrap();
+    let phi = scene.blocks.friction[0];
+    let r_open = 0.5 * scene.drawpoints.width[0];
+    let beta = 45.0 + 0.5 * phi;
+    let max_step = h / beta.to_radians().tan();
+    // Base angle: r = 0 at the slope 45 + φ/2, so no disk may be wider than the one below
+    // it (or than the opening, for disk 0) by more than h / tan(45 + φ/2). The r-law is
+    // integrated within each disk (`Imz::absorb`), so this holds to rounding, at every
+    // period and every height, not only within the one-marker-spacing slack the issue
+    // allows.
+    for &p in &scene.periods.id {
+        let dk = disks(&out, 0, p);
+        let mut below = r_open;
+        for (i, x) in dk.iter().enumerate() {
+            assert!(
+                x.2 - below <= max_step * (1.0 + 1e-9),
+                "period {p} disk {i}: step {} > {max_step}",
+                x.2 - below
+            );
+            below = x.2;
+        }
+    }
+    let last = *scene.periods.id.last().unwrap();
+    let dk = disks(&out, 0, last);
+    let angle = |dr: f64| (h / dr).atan().to_degrees();
+    eprintln!(
+        "base angle: opening→disk 0 {:.1}°, disk 0→1 {:.1}°, limit 45 + φ/2 = {beta:.1}°",
+        angle(dk[0].2 - r_open),
+        angle(dk[1].2 - dk[0].2)
+    );
+    assert!(angle(dk[1].2 - dk[0].2) >= beta - 1e-6);
+
+    // IEZ ⊂ IMZ: every drawn marker started inside the final IMZ at its origin elevation
+    // (material is mobilised only where a disk reaches, and disks never shrink); one
+    // marker spacing of slack for the lattice.
+    let dr = &out.drawn;
+    assert!(!dr.marker_id.is_empty());
+    let mut worst = f64::MIN;
+    let (mut iez_w, mut iez_h) = (0.0f64, 0.0f64);
+    for k in 0..dr.marker_id.len() {
+        let a = dr.origin_x[k].hypot(dr.origin_y[k]);
+        let r = radius_at(&dk, dr.origin_z[k]);
+        worst = worst.max(a - r);
+        iez_w = iez_w.max(2.0 * a);
+        iez_h = iez_h.max(dr.origin_z[k]);
+        assert!(
+            a <= r + s,
+            "drawn marker {} from a = {a} > R = {r} at z = {}",
+            dr.marker_id[k],
+            dr.origin_z[k]
+        );
+    }
+    let imz_w = 2.0 * dk.iter().map(|x| x.2).fold(0.0, f64::max);
+    let imz_h = dk.last().unwrap().1;
+    eprintln!(
+        "{} drawn markers: max (a − R) {worst:.4} m; IEZ {iez_w:.3} m wide × {iez_h:.3} m high, IMZ {imz_w:.3} m × {imz_h:.3} m",
+        dr.marker_id.len()
+    );
+}
+
+// ---------------------------------------------------------------------------------------
+// 4. Overlap: IN-T2 (two drawpoints at 700 mm, summary §4)
+// ---------------------------------------------------------------------------------------
+
+#[test]
+fn in_t2_drawdown_is_uniform_above_imz_overlap() {
+    let spacing = 0.7;
+    let b = UniformBox {
+        extent: [1.4, 1.0, 3.3],
+        drawpoints: vec![(-0.5 * spacing, 0.0, 0.12), (0.5 * spacing, 0.0, 0.12)],
+        periods: 4,
+        tonnes: 0.15,
+        ..UniformBox::castro_isolated()
+    };
     let scene = b.scene();
-    let sc = Scenario::default();
-    let t = std::time::Instant::now();
-    let mut e = Engine::new(&scene, &sc).unwrap();
-    eprintln!("res {:?}", e.resolution);
-    for p in 0..3 {
-        e.run_period(p);
-        let r: Vec<String> = e.imzs[0].geom.radius.iter().step_by(5).map(|r| format!("{r:.3}")).collect();
-        eprintln!("period {p} t={:?} markers {} drawn {} disks {} air {} R {:?}", t.elapsed(), e.markers.len(), e.drawn.m.len(), e.imzs[0].disks(), e.imzs[0].air, r);
+    let (h, s) = (0.05, 0.025);
+    let out = run(&scene, &scenario(h, s, 0.001));
+    let w = 10.0 * b.frag;
+    let last = *scene.periods.id.last().unwrap();
+    let (dk0, dk1) = (disks(&out, 0, last), disks(&out, 1, last));
+
+    // Height above which the two IMZs overlap along the line joining the drawpoints by
+    // more than the shear band w = 10 d̄ (the superposed cone/frustum profiles then add up
+    // to a plug, Melo et al. 2008).
+    let z_overlap = dk0
+        .iter()
+        .zip(&dk1)
+        .find(|(a, b)| a.2 + b.2 - spacing >= w)
+        .map(|(a, _)| a.0)
+        .expect("the IMZs never overlap by w");
+
+    // Drawdown of each initially horizontal lattice layer along the section y ≈ 0 between
+    // and above the drawpoints (x ∈ [−0.35, 0.35]): vertical displacement of every site
+    // (0 for ground never mobilised). A layer is judged where it is now (its origin minus
+    // its mean drawdown): one drawn down below the overlap height is in non-overlapping
+    // flow again. Layers holding drawn markers are left out of the uniform side too (a
+    // drawn marker's displacement stops at its origin height).
+    let lat = Lattice::new(&scene.blocks, s);
+    let snap = out.snapshots.last().unwrap();
+    let moved: HashMap<usize, (f64, bool)> = (0..snap.marker_id.len())
+        .map(|k| {
+            (
+                snap.marker_id[k] as usize,
+                (
+                    snap.origin_z[k] - snap.z[k],
+                    snap.state[k] == MarkerState::Drawn,
+                ),
+            )
+        })
+        .collect();
+    let mut layers: BTreeMap<usize, (f64, f64, bool, f64)> = BTreeMap::new();
+    for kz in 0..lat.n[2] {
+        let mut v = Vec::new();
+        let mut any_drawn = false;
+        for j in 0..lat.n[1] {
+            for i in 0..lat.n[0] {
+                let id = lat.id(i, j, kz);
+                let q = lat.pos(id);
+                if q[1].abs() < s && q[0].abs() <= 0.5 * spacing + 1e-9 {
+                    let (dz, drawn) = moved.get(&id).copied().unwrap_or((0.0, false));
+                    any_drawn |= drawn;
+                    v.push(dz);
+                }
+            }
+        }
+        let n = v.len() as f64;
+        let mean = v.iter().sum::<f64>() / n;
+        let sd = (v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / n).sqrt();
+        let z = lat.pos(lat.id(0, 0, kz))[2];
+        layers.insert(
+            kz,
+            (
+                z,
+                if mean > 0.0 { sd / mean } else { f64::INFINITY },
+                any_drawn,
+                z - mean,
+            ),
+        );
     }
-    let out = run(&scene, &sc);
-    eprintln!("res {:?} time {:?}", out.resolution, t.elapsed());
-    eprintln!("balance {:?}", out.balance);
-    for (z, r) in imz_profile(&out).iter().step_by(4) {
-        eprintln!("z {z:.3} R {r:.4}");
+    for (z, cv, drawn, now) in layers.values().step_by(4) {
+        let ov = radius_at(&dk0, *z) + radius_at(&dk1, *z) - spacing;
+        eprintln!(
+            "layer from z {z:.3} (now at {now:.3}): CV {cv:.3}{}; overlap at origin {ov:+.3} m (w = {w:.3})",
+            if *drawn { " (holds drawn markers)" } else { "" }
+        );
     }
+    let imz_top = dk0.last().unwrap().1.min(dk1.last().unwrap().1);
+    eprintln!("IMZs overlap by w from z = {z_overlap:.3} m; IMZ tops at {imz_top:.3} m");
+
+    // Below the overlap (lower half of the zone below it) drawdown is concentrated over
+    // each drawpoint: stagnant ground between them gives CV ≥ 0.5 (measured ≥ 0.63).
+    // Every layer now above the overlap height, holding no drawn marker, and starting at
+    // least h below the IMZ tops is drawn down uniformly: CV ≤ 0.15 (measured ≤ 0.115,
+    // falling to 0.02 near the top; the margin is for resolution).
+    let low: Vec<f64> = layers
+        .values()
+        .filter(|x| x.0 < 0.5 * z_overlap)
+        .map(|x| x.1)
+        .collect();
+    let high: Vec<(f64, f64)> = layers
+        .values()
+        .filter(|x| x.3 > z_overlap && !x.2 && x.0 < imz_top - h)
+        .map(|x| (x.0, x.1))
+        .collect();
+    assert!(
+        !low.is_empty() && high.len() >= 10,
+        "low {low:?} high {high:?}"
+    );
+    let low_min = low.iter().cloned().fold(f64::INFINITY, f64::min);
+    let (z_worst, high_max) =
+        high.iter()
+            .cloned()
+            .fold((0.0, 0.0f64), |a, x| if x.1 > a.1 { x } else { a });
+    eprintln!(
+        "CV of layers from below 0.5 z_overlap ≥ {low_min:.3}; CV of layers now above the overlap ≤ {high_max:.3} (origin z {z_worst:.3}; {} layers from origin {:.3} m)",
+        high.len(),
+        high[0].0
+    );
+    assert!(low_min >= 0.5, "low layers not concentrated: {low:?}");
+    assert!(high_max <= 0.15, "high layers not uniform: {high:?}");
+}
+
+// ---------------------------------------------------------------------------------------
+// 5. Convergence
+// ---------------------------------------------------------------------------------------
+
+#[test]
+fn results_settle_as_resolution_is_refined() {
+    // Isolated Castro draw of 40 kg at h = 50, 25 and 12.5 mm, marker spacing h/2 and
+    // increment 0.8, 0.4 and 0.2 kg (all three halved each time). The mean grade drawn is
+    // the tonne-weighted `elev` grade (the mean origin elevation of what was drawn).
+    let b = UniformBox {
+        periods: 2,
+        tonnes: 0.02,
+        ..UniformBox::castro_isolated()
+    };
+    let scene = b.scene();
+    let mut res = Vec::new();
+    for (h, inc) in [(0.05, 0.0008), (0.025, 0.0004), (0.0125, 0.0002)] {
+        let out = run(&scene, &scenario(h, 0.5 * h, inc));
+        let ex = &out.extraction;
+        let t: f64 = ex.tonnes.iter().sum();
+        let grade = (0..ex.tonnes.len())
+            .map(|k| ex.tonnes[k] * ex.grades[0][k])
+            .sum::<f64>()
+            / t;
+        let w = 2.0 * disks(&out, 0, 2).iter().map(|x| x.2).fold(0.0, f64::max);
+        eprintln!(
+            "h {h}: mean drawn grade {grade:.4} m, max IMZ width {w:.4} m, corrections {:?}",
+            ex.correction
+        );
+        res.push((grade, w));
+    }
+    let dg = [(res[1].0 - res[0].0).abs(), (res[2].0 - res[1].0).abs()];
+    let dw = [(res[1].1 - res[0].1).abs(), (res[2].1 - res[1].1).abs()];
+    eprintln!(
+        "grade changes {:.5} then {:.5}; width changes {:.5} then {:.5}",
+        dg[0], dg[1], dw[0], dw[1]
+    );
+    assert!(dg[1] < dg[0], "grade: {dg:?}");
+    assert!(dw[1] < dw[0], "width: {dw:?}");
+}
+
+// ---------------------------------------------------------------------------------------
+// 6. Vanishing porosity jump
+// ---------------------------------------------------------------------------------------
+
+/// Everything a run wrote is finite (NaN is allowed only in the per-tonne columns of
+/// extraction rows that drew nothing), and no radius exceeds the model's plan diagonal.
+fn assert_finite(scene: &Scene, out: &RunOutput) {
     let ex = &out.extraction;
     for k in 0..ex.tonnes.len() {
-        eprintln!("p{} sched {:.4} marker {:.4} c {:.3} credited {:.4} short {:.4} n {} oz {:.3}", ex.period[k], ex.scheduled_tonnes[k], ex.marker_tonnes[k], ex.correction[k], ex.tonnes[k], ex.shortfall_tonnes[k], ex.markers[k], ex.origin_z[k]);
+        for (name, v) in [
+            ("tonnes", ex.tonnes[k]),
+            ("marker_tonnes", ex.marker_tonnes[k]),
+            ("correction", ex.correction[k]),
+            ("cum_tonnes", ex.cum_tonnes[k]),
+            ("hod", ex.hod[k]),
+            ("air_gap", ex.air_gap[k]),
+        ] {
+            assert!(v.is_finite(), "row {k}: {name} = {v}");
+        }
+        if ex.markers[k] > 0 {
+            for v in [
+                ex.origin_z[k],
+                ex.frag_size[k],
+                ex.dilution[k],
+                ex.grades[0][k],
+            ] {
+                assert!(v.is_finite(), "row {k}: {v}");
+            }
+        }
     }
-    eprintln!("warnings {:?}", out.warnings);
+    let bm = &scene.blocks;
+    let max = bm.max_corner();
+    let diag = (max[0] - bm.origin[0]).hypot(max[1] - bm.origin[1]);
+    assert!(
+        out.imz
+            .radius
+            .iter()
+            .all(|r| r.is_finite() && *r > 0.0 && *r <= diag),
+        "radii: {:?}",
+        out.imz.radius
+    );
+    for s in &out.snapshots {
+        for v in [&s.x, &s.y, &s.z, &s.shear_strain, &s.shear_work] {
+            assert!(v.iter().all(|x| x.is_finite()));
+        }
+    }
+}
+
+#[test]
+fn vanishing_porosity_jump_stays_finite_and_conserves_mass() {
+    let sc = scenario(0.05, 0.025, 0.001);
+    // Wherever n1 − n0 → 0 the radius update R_i ← sqrt(R_i² + r v_i / (π h (n1 − n0)))
+    // would divide by zero; the engine instead widens the disk for free across ground
+    // already dilated (`engine::imz`). Two ways to get there:
+    // (a) Successive draw beside a dilated IMZ: DP01 draws periods 1–3, then DP02, 0.3 m
+    // away, draws periods 4–6 into ground DP01 already dilated (jump n1 − n1 = 0 on the
+    // shared side).
+    let b = UniformBox {
+        extent: [1.2, 0.8, 1.5],
+        drawpoints: vec![(-0.15, 0.0, 0.12), (0.15, 0.0, 0.12)],
+        periods: 6,
+        tonnes: 0.015,
+        ..UniformBox::castro_isolated()
+    };
+    let mut scene = b.scene();
+    for p in 0..6 {
+        scene.schedule.tonnes[2 * p + usize::from(p < 3)] = 0.0;
+    }
+    // (b) Ground already at its dilated porosity: n0 = n1 above z = 0.6 m (say, the
+    // broken remains of a level above), for one drawpoint.
+    let b2 = UniformBox {
+        extent: [1.0, 1.0, 1.5],
+        periods: 4,
+        tonnes: 0.015,
+        ..UniformBox::castro_isolated()
+    };
+    let mut scene2 = b2.scene();
+    for k in 0..scene2.blocks.len() {
+        if scene2.blocks.z[k] > 0.6 {
+            scene2.blocks.n0[k] = scene2.blocks.n1[k];
+        }
+    }
+    for (name, scene) in [
+        ("successive draw beside a dilated IMZ", &scene),
+        ("n0 = n1 above 0.6 m", &scene2),
+    ] {
+        let out = run(scene, &sc);
+        assert_finite(scene, &out);
+        let nd = scene.drawpoints.len();
+        let last = *scene.periods.id.last().unwrap();
+        for (d, &(sched, credited)) in out.balance.per_drawpoint.iter().enumerate() {
+            let rmax = disks(&out, d as u32, last)
+                .iter()
+                .map(|x| x.2)
+                .fold(0.0, f64::max);
+            eprintln!(
+                "{name}: DP{:02} credited/scheduled {:.6}, max R {rmax:.3} m",
+                d + 1,
+                credited / sched
+            );
+            // Same 0.5% as the conservation test.
+            assert!(
+                (credited / sched - 1.0).abs() <= 0.005,
+                "{name}: DP{:02}: {credited} of {sched}",
+                d + 1
+            );
+        }
+        let c = &out.extraction.correction;
+        eprintln!(
+            "{name}: corrections {:.3}–{:.3}; warnings {:?}",
+            c.iter().cloned().fold(9.0, f64::min),
+            c.iter().cloned().fold(0.0, f64::max),
+            out.warnings
+        );
+        assert!(out.extraction.drawpoint.iter().all(|&d| (d as usize) < nd));
+        let rmax = |d: u32| disks(&out, d, last).iter().map(|x| x.2).fold(0.0, f64::max);
+        if nd == 2 {
+            // Ground dilated by DP01 offers DP02 a smaller jump (DESIGN §4.3): after the
+            // same 45 kg, DP02's IMZ ends wider than DP01's (measured 0.278 against 0.257 m).
+            assert!(rmax(1) > rmax(0), "{} vs {}", rmax(1), rmax(0));
+        } else {
+            // With no jump at all the disks widen for free to the edge of the dilated
+            // ground, here the model walls (half-width 0.5 m; measured R 0.709 m, where
+            // the last perimeter point leaves the model), and no further.
+            assert!(rmax(0) >= 0.5, "{}", rmax(0));
+        }
+    }
 }
