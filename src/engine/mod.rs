@@ -271,22 +271,33 @@ impl<'a> Engine<'a> {
                         continue;
                     }
                     let zb = g.z0 + i as f64 * g.h;
-                    let (Some(kr), Some(jr), Some(ir)) =
-                        (lat.range(2, zb, zb + g.h), lat.range(1, g.y - r, g.y + r), lat.range(0, g.x - r, g.x + r))
-                    else {
+                    let (Some(kr), Some(jr)) = (lat.range(2, zb, zb + g.h), lat.range(1, g.y - r, g.y + r)) else {
                         continue;
                     };
                     for k in kr.0..=kr.1 {
                         for j in jr.0..=jr.1 {
-                            for ii in ir.0..=ir.1 {
-                                let id = lat.id(ii, j, k);
-                                if engulfed[id] {
-                                    continue;
-                                }
-                                let p = lat.pos(id);
-                                let a2 = (p[0] - g.x).powi(2) + (p[1] - g.y).powi(2);
-                                if a2 <= r * r && a2 > r0 * r0 {
-                                    found.push(id);
+                            // Only the annulus r0 < a ≤ r of this lattice row is new.
+                            let dy = lat.origin[1] + (j as f64 + 0.5) * lat.s - g.y;
+                            let outer = (r * r - dy * dy).max(0.0).sqrt();
+                            let inner = (r0 * r0 - dy * dy).max(0.0).sqrt();
+                            let spans = if inner > 0.0 {
+                                [(g.x - outer, g.x - inner), (g.x + inner, g.x + outer)]
+                            } else {
+                                [(g.x - outer, g.x + outer), (0.0, 0.0)]
+                            };
+                            for (lo, hi) in spans {
+                                // Sites on the outer circle belong in (hence the nudge).
+                                let Some(ir) = lat.range(0, lo, hi + 1e-9 * lat.s) else { continue };
+                                for ii in ir.0..=ir.1 {
+                                    let id = lat.id(ii, j, k);
+                                    if engulfed[id] {
+                                        continue;
+                                    }
+                                    let p = lat.pos(id);
+                                    let a2 = (p[0] - g.x).powi(2) + (p[1] - g.y).powi(2);
+                                    if a2 <= r * r && a2 > r0 * r0 {
+                                        found.push(id);
+                                    }
                                 }
                             }
                         }
