@@ -21,4 +21,4 @@ pub use schedule::{
     parse_period_header, read_schedule, ScheduleEntry, ScheduleForm, ScheduleTable,
 };
 pub(crate) use table::read_table_into;
-pub use table::{read_table, Column, ExtraColumn, Table};
+pub use table::{read_table, sha256_hex, Column, ExtraColumn, Table};

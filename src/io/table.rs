@@ -160,7 +160,7 @@ pub(crate) fn is_parquet(path: &Path) -> bool {
 }
 
 /// Hex SHA-256 of some bytes.
-pub(crate) fn sha256_hex(bytes: &[u8]) -> String {
+pub fn sha256_hex(bytes: &[u8]) -> String {
     Sha256::digest(bytes)
         .iter()
         .map(|b| format!("{b:02x}"))

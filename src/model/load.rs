@@ -48,7 +48,7 @@ use crate::model::{BlockModel, Drawpoints, Periods, Scenario, Scene, Schedule};
 use crate::schema::{TableSpec, BLOCK_MODEL, DRAWBELLS, DRAWPOINTS, PERIODS};
 
 /// An input file that went into a scene, for the run manifest.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct InputFile {
     /// What the file is: `blocks`, `drawpoints`, `drawbells`, `periods` or `schedule`.
     pub role: String,
@@ -58,6 +58,14 @@ pub struct InputFile {
     pub sha256: String,
     /// Number of data rows.
     pub rows: usize,
+}
+
+impl InputFile {
+    /// Describes an input file (e.g. the scenario file itself), hashing its bytes.
+    pub fn new(role: &str, path: &Path, rows: usize) -> std::io::Result<InputFile> {
+        let sha256 = crate::io::sha256_hex(&std::fs::read(path)?);
+        Ok(InputFile { role: role.to_string(), path: path.to_path_buf(), sha256, rows })
+    }
 }
 
 /// A validated scene, with what it was made from.
@@ -233,7 +241,13 @@ fn axis_size(values: &[f64]) -> Result<Option<f64>, (f64, f64, f64)> {
             return Err((lo, c, size));
         }
     }
-    Ok(Some(size))
+    // The whole span over the block count is far more precise than one difference of
+    // large mine coordinates; snap it to a micrometre when it is that close to one, so
+    // 7.6 m blocks read as 7.6, not 7.599999999998545.
+    let n = ((hi - lo) / size).round();
+    let refined = (hi - lo) / n;
+    let snapped = (refined * 1e6).round() / 1e6;
+    Ok(Some(if (snapped - refined).abs() <= 1e-6 * refined { snapped } else { refined }))
 }
 
 impl Loader {

@@ -4,47 +4,15 @@
 //! manifest is a complete run. The fields follow the `manifest` table spec in
 //! [`crate::schema::MANIFEST`].
 
-use std::fs::File;
-use std::io::{self, Read};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::time::{SystemTime, UNIX_EPOCH};
 
 use serde::Serialize;
-use sha2::{Digest, Sha256};
 
 use super::{write_atomic, OutputError};
 use crate::engine::result::{MassBalance, ResolvedResolution, RunOutput};
+use crate::model::load::InputFile;
 use crate::model::Scenario;
-
-/// One input file of a run.
-#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
-pub struct InputFile {
-    /// What the file is: `blocks`, `drawpoints`, `drawbells`, `schedule`, `periods`,
-    /// `scenario`, `production`.
-    pub role: String,
-    /// Path as given (absolute after scenario resolution).
-    pub path: PathBuf,
-    /// SHA-256 of the file's bytes, lower-case hex.
-    pub sha256: String,
-    /// Data rows read from it (0 for the scenario file).
-    pub rows: u64,
-}
-
-impl InputFile {
-    /// Describes an input file, hashing its contents.
-    pub fn new(role: &str, path: &Path, rows: u64) -> Result<InputFile, OutputError> {
-        let sha256 = sha256_file(path).map_err(|source| OutputError::Io {
-            path: path.to_path_buf(),
-            source,
-        })?;
-        Ok(InputFile {
-            role: role.to_string(),
-            path: path.to_path_buf(),
-            sha256,
-            rows,
-        })
-    }
-}
 
 /// The run manifest (`manifest.json`).
 #[derive(Debug, Clone, Serialize)]
@@ -110,24 +78,6 @@ impl Manifest {
     }
 }
 
-/// SHA-256 of a file's bytes as lower-case hex, read in 64 KiB chunks.
-pub fn sha256_file(path: &Path) -> io::Result<String> {
-    let mut file = File::open(path)?;
-    let mut hasher = Sha256::new();
-    let mut buf = vec![0u8; 1 << 16];
-    loop {
-        let n = file.read(&mut buf)?;
-        if n == 0 {
-            break;
-        }
-        hasher.update(&buf[..n]);
-    }
-    Ok(hasher
-        .finalize()
-        .iter()
-        .map(|b| format!("{b:02x}"))
-        .collect())
-}
 
 /// Formats a time as RFC 3339 UTC to the second, e.g. `2000-02-29T00:00:00Z`. Times before
 /// 1970 are clamped to the epoch.

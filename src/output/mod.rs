@@ -25,7 +25,8 @@ pub mod manifest;
 pub mod parquet;
 pub mod run;
 
-pub use self::manifest::{InputFile, Manifest};
+pub use self::manifest::Manifest;
+pub use crate::model::load::InputFile;
 pub use self::parquet::{write_atomic, write_parquet, AtomicFile};
 pub use self::run::write_run;
 

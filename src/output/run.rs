@@ -27,6 +27,11 @@ fn f64s(v: Vec<f64>) -> ArrayRef {
     Arc::new(Float64Array::from(v))
 }
 
+/// Float column where NaN (no marker drawn, so no value) is written as null.
+fn f64s_or_null(v: Vec<f64>) -> ArrayRef {
+    Arc::new(Float64Array::from_iter(v.into_iter().map(|x| (!x.is_nan()).then_some(x))))
+}
+
 fn i64s(v: Vec<i64>) -> ArrayRef {
     Arc::new(Int64Array::from(v))
 }
@@ -69,11 +74,11 @@ pub fn write_extraction(path: &Path, scene: &Scene, t: Extraction) -> Result<(),
         ("shortfall_tonnes", f64s(t.shortfall_tonnes)),
         ("cum_tonnes", f64s(t.cum_tonnes)),
         ("markers", i64s(t.markers)),
-        ("dilution", f64s(t.dilution)),
-        ("origin_z", f64s(t.origin_z)),
+        ("dilution", f64s_or_null(t.dilution)),
+        ("origin_z", f64s_or_null(t.origin_z)),
         ("hod", f64s(t.hod)),
-        ("frag_size", f64s(t.frag_size)),
-        ("fines_share", f64s(t.fines_share)),
+        ("frag_size", f64s_or_null(t.frag_size)),
+        ("fines_share", f64s_or_null(t.fines_share)),
         ("air_gap", f64s(t.air_gap)),
         ("status", status),
     ];
@@ -81,12 +86,12 @@ pub fn write_extraction(path: &Path, scene: &Scene, t: Extraction) -> Result<(),
         .grade_names
         .iter()
         .cloned()
-        .zip(t.grades.into_iter().map(f64s));
+        .zip(t.grades.into_iter().map(f64s_or_null));
     let liths = blocks
         .lithology_names
         .iter()
         .map(|l| format!("lith_{l}"))
-        .zip(t.lithology.into_iter().map(f64s));
+        .zip(t.lithology.into_iter().map(f64s_or_null));
     write_table(path, &EXTRACTION, fixed, grades.chain(liths).collect())
 }
 

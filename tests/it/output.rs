@@ -17,7 +17,7 @@ use caveflow::engine::result::{
 use caveflow::model::demo::{self, DemoScale, BLOCK_HEIGHT, EXTRACTION_LEVEL_Z};
 use caveflow::model::{Scenario, Scene};
 use caveflow::output::inputs::write_scene;
-use caveflow::output::manifest::{rfc3339_utc, sha256_file};
+use caveflow::output::manifest::rfc3339_utc;
 use caveflow::output::{write_atomic, write_parquet, write_run, AtomicFile, InputFile, Manifest};
 use caveflow::schema::{self, TableSpec};
 use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
@@ -519,7 +519,7 @@ fn sha256_of_a_file() {
     let path = dir.path().join("empty");
     fs::write(&path, b"").unwrap();
     assert_eq!(
-        sha256_file(&path).unwrap(),
+        InputFile::new("x", &path, 0).unwrap().sha256,
         "e3b0c44298fc1c149afbf4c8996fb92427ae41e4649b934ca495991b7852b855"
     );
 }
