@@ -1,1 +1,300 @@
-//! cli layer.
+//! The command line: clap arguments become a validated scenario, then one of the commands
+//! runs. Exit codes: 0 success, 1 invalid input (every problem listed), 2 any other error.
+
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::time::Instant;
+
+use anyhow::{bail, Context, Result};
+use clap::{Args, Parser, Subcommand, ValueEnum};
+
+use crate::engine::Engine;
+use crate::model::demo::{self, DemoScale};
+use crate::model::load::{load_scene, InputFile, LoadedScene};
+use crate::model::Scenario;
+use crate::output::{self, Manifest};
+use crate::schema;
+
+/// caveflow: gravity flow of caved rock in block and panel caving mines (REBOP after
+/// Pierce 2010). Give it a block model, drawpoints and a draw schedule; it predicts what
+/// every drawpoint delivers, period by period.
+#[derive(Debug, Parser)]
+#[command(name = "caveflow", version, about, long_about = None)]
+pub struct Cli {
+    /// What to do.
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// Subcommands.
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Simulate draw: writes extraction.parquet, imz.parquet, drawn.parquet, markers/,
+    /// charts/ and manifest.json into the output directory.
+    Run(RunArgs),
+    /// Check every input table and the scenario; list every problem with file, row, column
+    /// and rule. Exits 1 if anything is wrong.
+    Validate(InputArgs),
+    /// Print the schema of a table (JSON: fields, types, units, descriptions), or write
+    /// all of them.
+    Schema(SchemaArgs),
+    /// Write the synthetic Henderson-style demo panel (block model, drawpoints, periods,
+    /// schedule, scenario.toml).
+    Demo(DemoArgs),
+}
+
+/// Where the inputs come from: a scenario file, or the tables directly.
+#[derive(Debug, Args)]
+pub struct InputArgs {
+    /// Scenario file (TOML). Optional when the tables are given with --blocks etc.
+    pub scenario: Option<PathBuf>,
+    /// Block model (Parquet, CSV or MassFlow CSV).
+    #[arg(long)]
+    pub blocks: Option<PathBuf>,
+    /// Drawpoints (Parquet, CSV or MassFlow CSV).
+    #[arg(long)]
+    pub drawpoints: Option<PathBuf>,
+    /// Drawbells (MassFlow BellName, DDWidth, DDHeight): opening widths.
+    #[arg(long)]
+    pub drawbells: Option<PathBuf>,
+    /// Draw schedule: long (period, drawpoint, tonnes) or MassFlow wide.
+    #[arg(long)]
+    pub schedule: Option<PathBuf>,
+    /// Periods table (period, name, days).
+    #[arg(long)]
+    pub periods: Option<PathBuf>,
+    /// Override any scenario setting, e.g. --set resolution.layer_thickness=0.02
+    /// (repeatable).
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    pub sets: Vec<String>,
+}
+
+/// `caveflow run`.
+#[derive(Debug, Args)]
+pub struct RunArgs {
+    /// Inputs.
+    #[command(flatten)]
+    pub input: InputArgs,
+    /// Output directory (overrides outputs.dir).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    pub threads: Option<usize>,
+}
+
+/// `caveflow schema`.
+#[derive(Debug, Args)]
+pub struct SchemaArgs {
+    /// Table name (omit to list them).
+    pub table: Option<String>,
+    /// Write every schema as <dir>/<table>.json instead.
+    #[arg(long, value_name = "DIR")]
+    pub write: Option<PathBuf>,
+}
+
+/// Demo sizes.
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub enum Scale {
+    /// About 30 drawpoints, 24 monthly periods: seconds to run.
+    Small,
+    /// At least 400 drawpoints, 200 m columns, 10 years of daily draw: for benchmarks.
+    Mine,
+}
+
+/// `caveflow demo`.
+#[derive(Debug, Args)]
+pub struct DemoArgs {
+    /// Size of the panel.
+    #[arg(long, value_enum, default_value = "small")]
+    pub scale: Scale,
+    /// Directory to write into.
+    #[arg(long, default_value = "demo")]
+    pub out: PathBuf,
+    /// Seed of the generator and of the scenario.
+    #[arg(long, default_value_t = 42)]
+    pub seed: u64,
+}
+
+/// Parses the command line and runs it.
+pub fn main() -> Result<ExitCode> {
+    let cli = Cli::parse();
+    match cli.command {
+        Command::Run(a) => run(a),
+        Command::Validate(a) => validate(a),
+        Command::Schema(a) => schema_cmd(a),
+        Command::Demo(a) => demo_cmd(a),
+    }
+}
+
+/// The scenario from the arguments: a file plus overrides, or defaults plus the tables
+/// named on the command line.
+pub fn scenario(a: &InputArgs) -> Result<Scenario> {
+    let cwd = std::env::current_dir().context("current directory")?;
+    let mut sc = match &a.scenario {
+        Some(path) => Scenario::load(path, &a.sets)?,
+        None => {
+            if a.blocks.is_none() || a.drawpoints.is_none() || a.schedule.is_none() {
+                bail!("give a scenario file, or --blocks, --drawpoints and --schedule");
+            }
+            Scenario::from_sets(&a.sets, &cwd)?
+        }
+    };
+    let abs = |p: &PathBuf| if p.is_relative() { cwd.join(p) } else { p.clone() };
+    if let Some(p) = &a.blocks {
+        sc.inputs.blocks = abs(p);
+    }
+    if let Some(p) = &a.drawpoints {
+        sc.inputs.drawpoints = abs(p);
+    }
+    if let Some(p) = &a.schedule {
+        sc.inputs.schedule = abs(p);
+    }
+    if let Some(p) = &a.drawbells {
+        sc.inputs.drawbells = Some(abs(p));
+    }
+    if let Some(p) = &a.periods {
+        sc.inputs.periods = Some(abs(p));
+    }
+    Ok(sc)
+}
+
+/// Loads and validates; on problems prints them all and returns None.
+fn load(sc: &Scenario) -> Option<LoadedScene> {
+    match load_scene(sc) {
+        Ok(l) => Some(l),
+        Err(problems) => {
+            eprintln!("{} problem(s) in the inputs:", problems.0.len());
+            eprintln!("{problems}");
+            None
+        }
+    }
+}
+
+fn validate(a: InputArgs) -> Result<ExitCode> {
+    let sc = scenario(&a)?;
+    let Some(l) = load(&sc) else { return Ok(ExitCode::from(1)) };
+    for w in &l.warnings {
+        eprintln!("warning: {w}");
+    }
+    let s = &l.scene;
+    println!(
+        "ok: {} blocks ({} x {} x {} m), {} drawpoints, {} periods, {:.0} t scheduled",
+        s.blocks.len(),
+        s.blocks.size[0],
+        s.blocks.size[1],
+        s.blocks.size[2],
+        s.drawpoints.len(),
+        s.periods.len(),
+        s.schedule.tonnes.iter().sum::<f64>()
+    );
+    Ok(ExitCode::SUCCESS)
+}
+
+fn run(a: RunArgs) -> Result<ExitCode> {
+    let started = Instant::now();
+    let mut sc = scenario(&a.input)?;
+    if let Some(out) = &a.out {
+        sc.outputs.dir = out.clone();
+    }
+    if let Some(n) = a.threads {
+        rayon::ThreadPoolBuilder::new().num_threads(n).build_global().context("thread pool")?;
+    }
+    let Some(loaded) = load(&sc) else { return Ok(ExitCode::from(1)) };
+    for w in &loaded.warnings {
+        eprintln!("warning: {w}");
+    }
+    let scene = &loaded.scene;
+    let engine = Engine::new(scene, &sc)?;
+    let bar = progress(scene.periods.len() as u64, "periods");
+    let out = engine.run(&mut |done, _| bar.set_position(done as u64));
+    bar.finish_and_clear();
+    let dir = &sc.outputs.dir;
+    let mut inputs = loaded.inputs.clone();
+    if let Some(path) = &a.input.scenario {
+        inputs.push(InputFile::new("scenario", path, 0).with_context(|| path.display().to_string())?);
+    }
+    let command = std::env::args().collect::<Vec<_>>().join(" ");
+    let charts = if sc.outputs.charts { output::figures::write_run_charts(dir, scene, &out, None)? } else { Vec::new() };
+    let manifest =
+        Manifest::new(command, &sc, inputs, &out, rayon::current_num_threads(), started.elapsed().as_secs_f64());
+    let b = out.balance.clone();
+    for w in &out.warnings {
+        eprintln!("warning: {w}");
+    }
+    let files = output::write_run(dir, scene, out, &manifest)?;
+    println!(
+        "drew {:.0} t of {:.0} t scheduled ({} markers drawn of {} mobilised) in {:.1} s",
+        b.credited_tonnes,
+        b.scheduled_tonnes,
+        b.markers_drawn,
+        b.markers_mobilised,
+        started.elapsed().as_secs_f64()
+    );
+    println!("wrote {} files and {} charts to {}", files.len(), charts.len(), dir.display());
+    Ok(ExitCode::SUCCESS)
+}
+
+fn progress(n: u64, what: &str) -> indicatif::ProgressBar {
+    let bar = indicatif::ProgressBar::new(n);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("{elapsed_precise} [{bar:40}] {pos}/{len} {msg} (eta {eta})")
+            .expect("static template")
+            .progress_chars("=> "),
+    );
+    bar.set_message(what.to_string());
+    bar
+}
+
+fn schema_cmd(a: SchemaArgs) -> Result<ExitCode> {
+    if let Some(dir) = &a.write {
+        std::fs::create_dir_all(dir).with_context(|| dir.display().to_string())?;
+        for t in schema::ALL {
+            let path = dir.join(format!("{}.json", t.name));
+            output::write_atomic(&path, schema_json(t).as_bytes())?;
+        }
+        println!("wrote {} schemas to {}", schema::ALL.len(), dir.display());
+        return Ok(ExitCode::SUCCESS);
+    }
+    match &a.table {
+        Some(name) => match schema::table(name) {
+            Some(t) => print!("{}", schema_json(t)),
+            None => bail!("no table `{name}`; tables: {}", table_names()),
+        },
+        None => println!("{}", table_names()),
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// The JSON text of a table's schema, as committed in `schemas/`.
+pub fn schema_json(t: &schema::TableSpec) -> String {
+    let mut s = serde_json::to_string_pretty(&t.to_json()).expect("schema JSON");
+    s.push('\n');
+    s
+}
+
+fn table_names() -> String {
+    schema::ALL.iter().map(|t| t.name).collect::<Vec<_>>().join(", ")
+}
+
+fn demo_cmd(a: DemoArgs) -> Result<ExitCode> {
+    let scale = match a.scale {
+        Scale::Small => DemoScale::Small,
+        Scale::Mine => DemoScale::Mine,
+    };
+    let scene = demo::henderson(scale, a.seed);
+    let sc = demo::scenario(scale, a.seed);
+    let files = output::inputs::write_scene(&a.out, &scene, &sc)?;
+    println!(
+        "wrote the synthetic Henderson-style demo ({} drawpoints, {} blocks, {} periods) to {}:",
+        scene.drawpoints.len(),
+        scene.blocks.len(),
+        scene.periods.len(),
+        a.out.display()
+    );
+    for f in files {
+        println!("  {}", f.display());
+    }
+    println!("run it with: caveflow run {}", Path::new(&a.out).join("scenario.toml").display());
+    Ok(ExitCode::SUCCESS)
+}
