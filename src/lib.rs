@@ -9,9 +9,9 @@
 //! [`cli`]. No module reaches back up.
 #![warn(missing_docs)]
 
-pub mod schema;
+pub mod cli;
+pub mod engine;
 pub mod io;
 pub mod model;
-pub mod engine;
 pub mod output;
-pub mod cli;
+pub mod schema;

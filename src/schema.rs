@@ -95,7 +95,14 @@ const fn f(
     required: bool,
     aliases: &'static [&'static str],
 ) -> FieldSpec {
-    FieldSpec { name, kind, unit, description, required, aliases }
+    FieldSpec {
+        name,
+        kind,
+        unit,
+        description,
+        required,
+        aliases,
+    }
 }
 
 use Kind::*;
@@ -156,9 +163,30 @@ pub const DRAWBELLS: TableSpec = TableSpec {
     name: "drawbells",
     description: "One row per drawbell type or drawbell.",
     fields: &[
-        f("name", Str, "-", "Drawbell name (joins drawpoints.drawbell or drawpoints.bell_type)", true, &["BellName"]),
-        f("width", F64, "m", "Draw drift width: opening width at the drawpoint", true, &["DDWidth"]),
-        f("height", F64, "m", "Draw drift height", false, &["DDHeight"]),
+        f(
+            "name",
+            Str,
+            "-",
+            "Drawbell name (joins drawpoints.drawbell or drawpoints.bell_type)",
+            true,
+            &["BellName"],
+        ),
+        f(
+            "width",
+            F64,
+            "m",
+            "Draw drift width: opening width at the drawpoint",
+            true,
+            &["DDWidth"],
+        ),
+        f(
+            "height",
+            F64,
+            "m",
+            "Draw drift height",
+            false,
+            &["DDHeight"],
+        ),
     ],
     extra: None,
 };
@@ -168,8 +196,22 @@ pub const PERIODS: TableSpec = TableSpec {
     name: "periods",
     description: "One row per schedule period, in order.",
     fields: &[
-        f("period", I64, "-", "Period number, strictly increasing (cave_period refers to it)", true, &["Period", "id"]),
-        f("name", Str, "-", "Period name (e.g. Sept-08)", false, &["Name"]),
+        f(
+            "period",
+            I64,
+            "-",
+            "Period number, strictly increasing (cave_period refers to it)",
+            true,
+            &["Period", "id"],
+        ),
+        f(
+            "name",
+            Str,
+            "-",
+            "Period name (e.g. Sept-08)",
+            false,
+            &["Name"],
+        ),
         f("days", F64, "d", "Period length", true, &["Days"]),
     ],
     extra: None,
@@ -193,10 +235,31 @@ pub const PRODUCTION: TableSpec = TableSpec {
     description: "Sampled production per drawpoint and period, for reconcile and calibrate.",
     fields: &[
         f("drawpoint", Str, "-", "Drawpoint name", true, &["DPName"]),
-        f("period", I64, "-", "Period number (or give date)", false, &["Period"]),
-        f("date", Str, "-", "Sample date, ISO 8601 (used when period is absent)", false, &["Date"]),
+        f(
+            "period",
+            I64,
+            "-",
+            "Period number (or give date)",
+            false,
+            &["Period"],
+        ),
+        f(
+            "date",
+            Str,
+            "-",
+            "Sample date, ISO 8601 (used when period is absent)",
+            false,
+            &["Date"],
+        ),
         f("tonnes", F64, "t", "Tonnes produced", true, &["Tonnes"]),
-        f("frag_size", F64, "m", "Sampled mean fragment size", false, &[]),
+        f(
+            "frag_size",
+            F64,
+            "m",
+            "Sampled mean fragment size",
+            false,
+            &[],
+        ),
     ],
     extra: Some(ExtraColumns {
         pattern: "<grade name>",
@@ -243,7 +306,14 @@ pub const IMZ: TableSpec = TableSpec {
     fields: &[
         f("drawpoint", Str, "-", "Drawpoint name", true, &[]),
         f("period", I64, "-", "Period number", true, &[]),
-        f("disk", I64, "-", "Disk index, 0 at the drawpoint", true, &[]),
+        f(
+            "disk",
+            I64,
+            "-",
+            "Disk index, 0 at the drawpoint",
+            true,
+            &[],
+        ),
         f("z_base", F64, "m", "Disk base elevation", true, &[]),
         f("z_top", F64, "m", "Disk top elevation", true, &[]),
         f("radius", F64, "m", "Disk radius R_i", true, &[]),
@@ -256,9 +326,23 @@ pub const DRAWN: TableSpec = TableSpec {
     name: "drawn",
     description: "One row per drawn marker: where it came from and who drew it (the IEZ).",
     fields: &[
-        f("marker_id", I64, "-", "Marker identifier (lattice site index)", true, &[]),
+        f(
+            "marker_id",
+            I64,
+            "-",
+            "Marker identifier (lattice site index)",
+            true,
+            &[],
+        ),
         f("drawpoint", Str, "-", "Drawpoint that drew it", true, &[]),
-        f("period", I64, "-", "Period in which it was drawn", true, &[]),
+        f(
+            "period",
+            I64,
+            "-",
+            "Period in which it was drawn",
+            true,
+            &[],
+        ),
         f("origin_x", F64, "m", "Origin Easting", true, &[]),
         f("origin_y", F64, "m", "Origin Northing", true, &[]),
         f("origin_z", F64, "m", "Origin elevation", true, &[]),
@@ -301,19 +385,56 @@ pub const MANIFEST: TableSpec = TableSpec {
     description: "manifest.json: what was run, on what, and how the mass balanced.",
     fields: &[
         f("caveflow_version", Str, "-", "Crate version", true, &[]),
-        f("inputs", Str, "-", "Input files with their SHA-256", true, &[]),
-        f("scenario", Str, "-", "The resolved scenario (every setting, defaults filled in)", true, &[]),
+        f(
+            "inputs",
+            Str,
+            "-",
+            "Input files with their SHA-256",
+            true,
+            &[],
+        ),
+        f(
+            "scenario",
+            Str,
+            "-",
+            "The resolved scenario (every setting, defaults filled in)",
+            true,
+            &[],
+        ),
         f("seed", I64, "-", "Random seed", true, &[]),
         f("wall_time_s", F64, "s", "Wall time of the run", true, &[]),
-        f("mass_balance", Str, "-", "Scheduled, credited and shortfall tonnes, overall and per drawpoint", true, &[]),
-        f("warnings", Str, "-", "Warnings raised during the run", true, &[]),
+        f(
+            "mass_balance",
+            Str,
+            "-",
+            "Scheduled, credited and shortfall tonnes, overall and per drawpoint",
+            true,
+            &[],
+        ),
+        f(
+            "warnings",
+            Str,
+            "-",
+            "Warnings raised during the run",
+            true,
+            &[],
+        ),
     ],
     extra: None,
 };
 
 /// Every table, for `caveflow schema`.
 pub const ALL: &[TableSpec] = &[
-    BLOCK_MODEL, DRAWPOINTS, DRAWBELLS, PERIODS, SCHEDULE, PRODUCTION, EXTRACTION, IMZ, DRAWN, MARKERS,
+    BLOCK_MODEL,
+    DRAWPOINTS,
+    DRAWBELLS,
+    PERIODS,
+    SCHEDULE,
+    PRODUCTION,
+    EXTRACTION,
+    IMZ,
+    DRAWN,
+    MARKERS,
     MANIFEST,
 ];
 
@@ -333,8 +454,16 @@ impl TableSpec {
     pub fn arrow_schema(&self, fixed: &[&str], extra: &[String]) -> Arc<Schema> {
         let mut fields: Vec<Field> = Vec::new();
         for name in fixed {
-            let spec = self.field(name).unwrap_or_else(|| panic!("{} has no field {name}", self.name));
-            fields.push(arrow_field(spec.name, spec.kind, spec.unit, spec.description, !spec.required));
+            let spec = self
+                .field(name)
+                .unwrap_or_else(|| panic!("{} has no field {name}", self.name));
+            fields.push(arrow_field(
+                spec.name,
+                spec.kind,
+                spec.unit,
+                spec.description,
+                !spec.required,
+            ));
         }
         if let Some(x) = &self.extra {
             for name in extra {

@@ -140,7 +140,13 @@ pub fn scenario(a: &InputArgs) -> Result<Scenario> {
             Scenario::from_sets(&a.sets, &cwd)?
         }
     };
-    let abs = |p: &PathBuf| if p.is_relative() { cwd.join(p) } else { p.clone() };
+    let abs = |p: &PathBuf| {
+        if p.is_relative() {
+            cwd.join(p)
+        } else {
+            p.clone()
+        }
+    };
     if let Some(p) = &a.blocks {
         sc.inputs.blocks = abs(p);
     }
@@ -173,7 +179,9 @@ fn load(sc: &Scenario) -> Option<LoadedScene> {
 
 fn validate(a: InputArgs) -> Result<ExitCode> {
     let sc = scenario(&a)?;
-    let Some(l) = load(&sc) else { return Ok(ExitCode::from(1)) };
+    let Some(l) = load(&sc) else {
+        return Ok(ExitCode::from(1));
+    };
     for w in &l.warnings {
         eprintln!("warning: {w}");
     }
@@ -198,9 +206,14 @@ fn run(a: RunArgs) -> Result<ExitCode> {
         sc.outputs.dir = out.clone();
     }
     if let Some(n) = a.threads {
-        rayon::ThreadPoolBuilder::new().num_threads(n).build_global().context("thread pool")?;
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build_global()
+            .context("thread pool")?;
     }
-    let Some(loaded) = load(&sc) else { return Ok(ExitCode::from(1)) };
+    let Some(loaded) = load(&sc) else {
+        return Ok(ExitCode::from(1));
+    };
     for w in &loaded.warnings {
         eprintln!("warning: {w}");
     }
@@ -212,12 +225,23 @@ fn run(a: RunArgs) -> Result<ExitCode> {
     let dir = &sc.outputs.dir;
     let mut inputs = loaded.inputs.clone();
     if let Some(path) = &a.input.scenario {
-        inputs.push(InputFile::new("scenario", path, 0).with_context(|| path.display().to_string())?);
+        inputs
+            .push(InputFile::new("scenario", path, 0).with_context(|| path.display().to_string())?);
     }
     let command = std::env::args().collect::<Vec<_>>().join(" ");
-    let charts = if sc.outputs.charts { output::figures::write_run_charts(dir, scene, &out, None)? } else { Vec::new() };
-    let manifest =
-        Manifest::new(command, &sc, inputs, &out, rayon::current_num_threads(), started.elapsed().as_secs_f64());
+    let charts = if sc.outputs.charts {
+        output::figures::write_run_charts(dir, scene, &out, None)?
+    } else {
+        Vec::new()
+    };
+    let manifest = Manifest::new(
+        command,
+        &sc,
+        inputs,
+        &out,
+        rayon::current_num_threads(),
+        started.elapsed().as_secs_f64(),
+    );
     let b = out.balance.clone();
     for w in &out.warnings {
         eprintln!("warning: {w}");
@@ -231,16 +255,23 @@ fn run(a: RunArgs) -> Result<ExitCode> {
         b.markers_mobilised,
         started.elapsed().as_secs_f64()
     );
-    println!("wrote {} files and {} charts to {}", files.len(), charts.len(), dir.display());
+    println!(
+        "wrote {} files and {} charts to {}",
+        files.len(),
+        charts.len(),
+        dir.display()
+    );
     Ok(ExitCode::SUCCESS)
 }
 
 fn progress(n: u64, what: &str) -> indicatif::ProgressBar {
     let bar = indicatif::ProgressBar::new(n);
     bar.set_style(
-        indicatif::ProgressStyle::with_template("{elapsed_precise} [{bar:40}] {pos}/{len} {msg} (eta {eta})")
-            .expect("static template")
-            .progress_chars("=> "),
+        indicatif::ProgressStyle::with_template(
+            "{elapsed_precise} [{bar:40}] {pos}/{len} {msg} (eta {eta})",
+        )
+        .expect("static template")
+        .progress_chars("=> "),
     );
     bar.set_message(what.to_string());
     bar
@@ -274,7 +305,11 @@ pub fn schema_json(t: &schema::TableSpec) -> String {
 }
 
 fn table_names() -> String {
-    schema::ALL.iter().map(|t| t.name).collect::<Vec<_>>().join(", ")
+    schema::ALL
+        .iter()
+        .map(|t| t.name)
+        .collect::<Vec<_>>()
+        .join(", ")
 }
 
 fn demo_cmd(a: DemoArgs) -> Result<ExitCode> {
@@ -295,6 +330,9 @@ fn demo_cmd(a: DemoArgs) -> Result<ExitCode> {
     for f in files {
         println!("  {}", f.display());
     }
-    println!("run it with: caveflow run {}", Path::new(&a.out).join("scenario.toml").display());
+    println!(
+        "run it with: caveflow run {}",
+        Path::new(&a.out).join("scenario.toml").display()
+    );
     Ok(ExitCode::SUCCESS)
 }

@@ -196,8 +196,6 @@ pub struct MotionField<'a> {
     pub geoms: &'a [ImzGeom],
     /// Per-disk motion of every IMZ (empty slices for IMZs that did not draw).
     pub motion: &'a [&'a [DiskMotion]],
-    /// Opening radius per IMZ.
-    pub r_open: &'a [f64],
     /// Grid over the drawing IMZs.
     pub grid: &'a ImzGrid,
 }

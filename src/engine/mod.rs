@@ -102,7 +102,11 @@ impl<'a> Engine<'a> {
         let res = resolution::resolve(scene, scenario);
         let lattice = Lattice::new(bm, res.marker_spacing);
         if lattice.len() > MAX_SITES {
-            return Err(EngineError::TooManySites { spacing: res.marker_spacing, sites: lattice.len(), limit: MAX_SITES });
+            return Err(EngineError::TooManySites {
+                spacing: res.marker_spacing,
+                sites: lattice.len(),
+                limit: MAX_SITES,
+            });
         }
         let max = bm.max_corner();
         let diag = ((max[0] - bm.origin[0]).powi(2) + (max[1] - bm.origin[1]).powi(2)).sqrt();
@@ -115,11 +119,27 @@ impl<'a> Engine<'a> {
         };
         let dp = &scene.drawpoints;
         let imzs = (0..dp.len())
-            .map(|d| Imz::new(d, dp.x[d], dp.y[d], dp.z[d], res.layer_thickness, dp.width[d]))
+            .map(|d| {
+                Imz::new(
+                    d,
+                    dp.x[d],
+                    dp.y[d],
+                    dp.z[d],
+                    res.layer_thickness,
+                    dp.width[d],
+                )
+            })
             .collect();
         let n_dp = dp.len();
-        let tally = Tally { grade: vec![0.0; bm.grades.len()], lith: vec![0.0; bm.lithology_names.len()], ..Default::default() };
-        let mut out = RunOutput { resolution: res, ..Default::default() };
+        let tally = Tally {
+            grade: vec![0.0; bm.grades.len()],
+            lith: vec![0.0; bm.lithology_names.len()],
+            ..Default::default()
+        };
+        let mut out = RunOutput {
+            resolution: res,
+            ..Default::default()
+        };
         out.extraction.grades = vec![Vec::new(); bm.grades.len()];
         out.extraction.lithology = vec![Vec::new(); bm.lithology_names.len()];
         Ok(Engine {
@@ -139,7 +159,10 @@ impl<'a> Engine<'a> {
             hod_density_area: tributary(scene),
             waste: waste_blocks(scene, scenario),
             fines_frac: fines_fractions(scene, scenario.outputs.fines_cutoff),
-            extent: ([bm.origin[0], bm.origin[1]], [max[0] - bm.origin[0], max[1] - bm.origin[1]]),
+            extent: (
+                [bm.origin[0], bm.origin[1]],
+                [max[0] - bm.origin[0], max[1] - bm.origin[1]],
+            ),
             out,
         })
     }
@@ -156,7 +179,9 @@ impl<'a> Engine<'a> {
 
     fn grid_cell(&self) -> f64 {
         let bm = &self.scene.blocks;
-        bm.size[0].min(bm.size[1]).max(self.resolution.marker_spacing)
+        bm.size[0]
+            .min(bm.size[1])
+            .max(self.resolution.marker_spacing)
     }
 
     /// Draws period index `p`.
@@ -167,12 +192,18 @@ impl<'a> Engine<'a> {
         // Ground that caved since the previous period (period numbers need not be
         // consecutive: a block caving at a number between two listed periods is flowable
         // from the later one).
-        let prev = if p == 0 { i64::MIN } else { scene.periods.id[p - 1] };
+        let prev = if p == 0 {
+            i64::MIN
+        } else {
+            scene.periods.id[p - 1]
+        };
         if p == 0 || bm.cave_period.iter().any(|&c| c > prev && c <= period) {
             // Newly caved ground: perimeters and engulfment must be looked at again.
             for imz in &mut self.imzs {
                 imz.r_engulfed.iter_mut().for_each(|r| *r = 0.0);
-                imz.stagnant.iter_mut().for_each(|s| s.sampled_at = f64::NAN);
+                imz.stagnant
+                    .iter_mut()
+                    .for_each(|s| s.sampled_at = f64::NAN);
             }
         }
         self.refresh_mobilised();
@@ -208,23 +239,43 @@ impl<'a> Engine<'a> {
         let all: Vec<usize> = (0..geoms.len()).collect();
         let cell = self.grid_cell();
         let grid = ImzGrid::build(&geoms, &all, self.extent.0, self.extent.1, cell);
-        let ground = Ground { blocks: bm, period, geoms: &geoms, grid: &grid };
+        let ground = Ground {
+            blocks: bm,
+            period,
+            geoms: &geoms,
+            grid: &grid,
+        };
         let params = self.params;
         let mut is_drawing = vec![false; self.imzs.len()];
         drawing.iter().for_each(|&d| is_drawing[d] = true);
-        self.imzs.par_iter_mut().filter(|m| is_drawing[m.id]).for_each(|imz| {
-            imz.begin_interval();
-            imz.draw(row[imz.id] / steps as f64, &ground, &params);
-            imz.finish_interval(&params);
-        });
+        self.imzs
+            .par_iter_mut()
+            .filter(|m| is_drawing[m.id])
+            .for_each(|imz| {
+                imz.begin_interval();
+                imz.draw(row[imz.id] / steps as f64, &ground, &params);
+                imz.finish_interval(&params);
+            });
         self.engulf(period, drawing);
         let geoms: Vec<ImzGeom> = self.imzs.iter().map(|m| m.geom.clone()).collect();
         let grid = ImzGrid::build(&geoms, drawing, self.extent.0, self.extent.1, cell);
         let empty: &[DiskMotion] = &[];
-        let motion: Vec<&[DiskMotion]> =
-            self.imzs.iter().map(|m| if is_drawing[m.id] { &m.motion[..] } else { empty }).collect();
-        let r_open: Vec<f64> = self.imzs.iter().map(|m| m.r_open).collect();
-        let field = MotionField { geoms: &geoms, motion: &motion, r_open: &r_open, grid: &grid };
+        let motion: Vec<&[DiskMotion]> = self
+            .imzs
+            .iter()
+            .map(|m| {
+                if is_drawing[m.id] {
+                    &m.motion[..]
+                } else {
+                    empty
+                }
+            })
+            .collect();
+        let field = MotionField {
+            geoms: &geoms,
+            motion: &motion,
+            grid: &grid,
+        };
         let mut drawn = markers::move_markers(&mut self.markers, &field);
         drawn.sort_unstable_by(|a, b| b.0.cmp(&a.0));
         for (k, d) in drawn {
@@ -271,7 +322,9 @@ impl<'a> Engine<'a> {
                         continue;
                     }
                     let zb = g.z0 + i as f64 * g.h;
-                    let (Some(kr), Some(jr)) = (lat.range(2, zb, zb + g.h), lat.range(1, g.y - r, g.y + r)) else {
+                    let (Some(kr), Some(jr)) =
+                        (lat.range(2, zb, zb + g.h), lat.range(1, g.y - r, g.y + r))
+                    else {
                         continue;
                     };
                     for k in kr.0..=kr.1 {
@@ -287,7 +340,9 @@ impl<'a> Engine<'a> {
                             };
                             for (lo, hi) in spans {
                                 // Sites on the outer circle belong in (hence the nudge).
-                                let Some(ir) = lat.range(0, lo, hi + 1e-9 * lat.s) else { continue };
+                                let Some(ir) = lat.range(0, lo, hi + 1e-9 * lat.s) else {
+                                    continue;
+                                };
                                 for ii in ir.0..=ir.1 {
                                     let id = lat.id(ii, j, k);
                                     if engulfed[id] {
@@ -320,7 +375,8 @@ impl<'a> Engine<'a> {
                 continue;
             }
             self.engulfed[id] = true;
-            self.markers.push(id as u64, p, self.marker_mass[b], b as u32, bm.frag[b]);
+            self.markers
+                .push(id as u64, p, self.marker_mass[b], b as u32, bm.frag[b]);
         }
     }
 
@@ -328,7 +384,9 @@ impl<'a> Engine<'a> {
     fn refresh_mobilised(&mut self) {
         let bm = &self.scene.blocks;
         for imz in &mut self.imzs {
-            imz.mobilised.iter_mut().for_each(|m| *m = Mobilised::default());
+            imz.mobilised
+                .iter_mut()
+                .for_each(|m| *m = Mobilised::default());
         }
         let geoms: Vec<ImzGeom> = self.imzs.iter().map(|m| m.geom.clone()).collect();
         let all: Vec<usize> = (0..geoms.len()).collect();
@@ -391,12 +449,19 @@ impl<'a> Engine<'a> {
             ex.markers.push(t.count);
             ex.dilution.push(per(t.waste));
             ex.origin_z.push(per(t.origin_z));
-            ex.hod.push(self.cum[d] / self.hod_density_area[d].max(1e-12));
+            ex.hod
+                .push(self.cum[d] / self.hod_density_area[d].max(1e-12));
             ex.frag_size.push(per(t.frag));
             ex.fines_share.push(per(t.fines));
             ex.air_gap.push(self.imzs[d].air);
             let short = self.carry[d] > 1e-6 * target.max(1.0);
-            ex.status.push(if scheduled <= 0.0 && t.count == 0 { "idle" } else if short { "short" } else { "ok" });
+            ex.status.push(if scheduled <= 0.0 && t.count == 0 {
+                "idle"
+            } else if short {
+                "short"
+            } else {
+                "ok"
+            });
             for (g, v) in t.grade.iter().enumerate() {
                 ex.grades[g].push(per(*v));
             }
@@ -433,9 +498,16 @@ impl<'a> Engine<'a> {
             .chain((0..self.drawn.m.len()).map(|k| (self.drawn.m.id[k], true, k)))
             .collect();
         rows.sort_unstable();
-        let mut s = MarkerSnapshot { period, ..Default::default() };
+        let mut s = MarkerSnapshot {
+            period,
+            ..Default::default()
+        };
         for (id, is_drawn, k) in rows {
-            let m = if is_drawn { &self.drawn.m } else { &self.markers };
+            let m = if is_drawn {
+                &self.drawn.m
+            } else {
+                &self.markers
+            };
             let o = self.lattice.pos(id as usize);
             let b = m.block[k] as usize;
             s.marker_id.push(id as i64);
@@ -447,13 +519,22 @@ impl<'a> Engine<'a> {
             s.origin_z.push(o[2]);
             s.mass.push(m.mass[k]);
             s.block_id.push(bm.id[b]);
-            s.state.push(if is_drawn { MarkerState::Drawn } else { MarkerState::Moving });
+            s.state.push(if is_drawn {
+                MarkerState::Drawn
+            } else {
+                MarkerState::Moving
+            });
             s.porosity.push(bm.n1[b]);
             s.frag_size.push(m.frag[k]);
             s.shear_strain.push(m.strain[k]);
             s.shear_work.push(m.work[k]);
-            s.drawpoint.push(if is_drawn { self.drawn.drawpoint[k] } else { u32::MAX });
-            s.drawn_period.push(if is_drawn { self.drawn.period[k] } else { -1 });
+            s.drawpoint.push(if is_drawn {
+                self.drawn.drawpoint[k]
+            } else {
+                u32::MAX
+            });
+            s.drawn_period
+                .push(if is_drawn { self.drawn.period[k] } else { -1 });
         }
         s
     }
@@ -498,7 +579,7 @@ impl<'a> Engine<'a> {
         for imz in &self.imzs {
             if imz.blocked {
                 self.out.warnings.push(format!(
-                    "drawpoint {}: IMZ reached unflowable ground; {:.1} m3 of void is an air gap (air gap and rilling are modelled in a later mechanism)",
+                    "drawpoint {}: IMZ reached unflowable ground; {:.3e} m3 of void is an air gap (air gap and rilling are modelled in a later mechanism)",
                     self.scene.drawpoints.name[imz.id], imz.air
                 ));
             }
@@ -553,10 +634,16 @@ fn waste_blocks(scene: &Scene, sc: &Scenario) -> Vec<bool> {
         Some(name) => bm.grade_names.iter().position(|n| n == name),
         None => (!bm.grades.is_empty()).then_some(0),
     };
-    let waste_lith: Vec<bool> =
-        bm.lithology_names.iter().map(|n| sc.dilution.waste_lithologies.iter().any(|w| w == n)).collect();
+    let waste_lith: Vec<bool> = bm
+        .lithology_names
+        .iter()
+        .map(|n| sc.dilution.waste_lithologies.iter().any(|w| w == n))
+        .collect();
     (0..bm.len())
-        .map(|b| waste_lith[bm.lithology[b] as usize] || g.is_some_and(|g| bm.grades[g][b] < sc.dilution.cutoff))
+        .map(|b| {
+            waste_lith[bm.lithology[b] as usize]
+                || g.is_some_and(|g| bm.grades[g][b] < sc.dilution.cutoff)
+        })
         .collect()
 }
 

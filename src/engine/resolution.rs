@@ -18,15 +18,33 @@ use crate::model::{Scenario, Scene};
 pub fn resolve(scene: &Scene, sc: &Scenario) -> ResolvedResolution {
     let bm = &scene.blocks;
     let min_block = bm.size.iter().cloned().fold(f64::INFINITY, f64::min);
-    let min_open = scene.drawpoints.width.iter().cloned().fold(f64::INFINITY, f64::min);
-    let h = sc.resolution.layer_thickness.unwrap_or_else(|| (0.5 * min_block).min(min_open));
+    let min_open = scene
+        .drawpoints
+        .width
+        .iter()
+        .cloned()
+        .fold(f64::INFINITY, f64::min);
+    let h = sc
+        .resolution
+        .layer_thickness
+        .unwrap_or_else(|| (0.5 * min_block).min(min_open));
     let s = sc.resolution.marker_spacing.unwrap_or(0.5 * h);
     let rho1 = if bm.is_empty() {
         1.0
     } else {
-        (0..bm.len()).map(|b| bm.density[b] * (1.0 - bm.n1[b])).sum::<f64>() / bm.len() as f64
+        (0..bm.len())
+            .map(|b| bm.density[b] * (1.0 - bm.n1[b]))
+            .sum::<f64>()
+            / bm.len() as f64
     };
     let r = 0.5 * min_open;
-    let inc = sc.resolution.draw_increment.unwrap_or(std::f64::consts::PI * r * r * h * rho1);
-    ResolvedResolution { layer_thickness: h, marker_spacing: s, draw_increment: inc }
+    let inc = sc
+        .resolution
+        .draw_increment
+        .unwrap_or(std::f64::consts::PI * r * r * h * rho1);
+    ResolvedResolution {
+        layer_thickness: h,
+        marker_spacing: s,
+        draw_increment: inc,
+    }
 }

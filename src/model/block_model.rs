@@ -159,7 +159,10 @@ impl BlockModel {
                     b,
                     format!(
                         "block at ({}, {}, {}) occupies the same cell as row {}",
-                        p[0], p[1], p[2], self.index[cell] as usize + 1
+                        p[0],
+                        p[1],
+                        p[2],
+                        self.index[cell] as usize + 1
                     ),
                 ));
                 continue;

@@ -75,6 +75,10 @@ impl Schedule {
     }
     /// Total scheduled tonnes of drawpoint `d`.
     pub fn total(&self, d: usize) -> f64 {
-        self.tonnes.iter().skip(d).step_by(self.n_drawpoints.max(1)).sum()
+        self.tonnes
+            .iter()
+            .skip(d)
+            .step_by(self.n_drawpoints.max(1))
+            .sum()
     }
 }

@@ -64,7 +64,12 @@ impl InputFile {
     /// Describes an input file (e.g. the scenario file itself), hashing its bytes.
     pub fn new(role: &str, path: &Path, rows: usize) -> std::io::Result<InputFile> {
         let sha256 = crate::io::sha256_hex(&std::fs::read(path)?);
-        Ok(InputFile { role: role.to_string(), path: path.to_path_buf(), sha256, rows })
+        Ok(InputFile {
+            role: role.to_string(),
+            path: path.to_path_buf(),
+            sha256,
+            rows,
+        })
     }
 }
 
@@ -247,7 +252,11 @@ fn axis_size(values: &[f64]) -> Result<Option<f64>, (f64, f64, f64)> {
     let n = ((hi - lo) / size).round();
     let refined = (hi - lo) / n;
     let snapped = (refined * 1e6).round() / 1e6;
-    Ok(Some(if (snapped - refined).abs() <= 1e-6 * refined { snapped } else { refined }))
+    Ok(Some(if (snapped - refined).abs() <= 1e-6 * refined {
+        snapped
+    } else {
+        refined
+    }))
 }
 
 impl Loader {

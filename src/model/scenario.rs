@@ -78,7 +78,12 @@ pub struct Flow {
 
 impl Default for Flow {
     fn default() -> Self {
-        Flow { q: 3.5, shear_band_factor: 10.0, default_opening_width: 4.0, min_porosity_jump: 0.005 }
+        Flow {
+            q: 3.5,
+            shear_band_factor: 10.0,
+            default_opening_width: 4.0,
+            min_porosity_jump: 0.005,
+        }
     }
 }
 
@@ -110,7 +115,11 @@ pub struct Dilution {
 
 impl Default for Dilution {
     fn default() -> Self {
-        Dilution { grade: None, cutoff: 0.0, waste_lithologies: Vec::new() }
+        Dilution {
+            grade: None,
+            cutoff: 0.0,
+            waste_lithologies: Vec::new(),
+        }
     }
 }
 
@@ -167,24 +176,40 @@ impl Scenario {
     /// Loads a scenario file, applies `--set key=value` overrides, and makes input paths
     /// absolute relative to the file's folder.
     pub fn load(path: &Path, sets: &[String]) -> Result<Scenario, ScenarioError> {
-        let text = std::fs::read_to_string(path)
-            .map_err(|source| ScenarioError::Read { path: path.to_path_buf(), source })?;
+        let text = std::fs::read_to_string(path).map_err(|source| ScenarioError::Read {
+            path: path.to_path_buf(),
+            source,
+        })?;
         let base = path.parent().unwrap_or(Path::new("."));
         Self::from_toml(&text, &path.display().to_string(), sets, base)
     }
 
     /// Parses scenario text, applies overrides, resolves paths against `base`.
-    pub fn from_toml(text: &str, origin: &str, sets: &[String], base: &Path) -> Result<Scenario, ScenarioError> {
-        let mut value: toml::Table = text
-            .parse()
-            .map_err(|e: toml::de::Error| ScenarioError::Parse { path: origin.into(), message: e.to_string() })?;
+    pub fn from_toml(
+        text: &str,
+        origin: &str,
+        sets: &[String],
+        base: &Path,
+    ) -> Result<Scenario, ScenarioError> {
+        let mut value: toml::Table =
+            text.parse()
+                .map_err(|e: toml::de::Error| ScenarioError::Parse {
+                    path: origin.into(),
+                    message: e.to_string(),
+                })?;
         for s in sets {
             apply_set(&mut value, s)?;
         }
-        let mut sc: Scenario = Scenario::deserialize(toml::Value::Table(value))
-            .map_err(|e| ScenarioError::Parse { path: origin.into(), message: e.to_string() })?;
+        let mut sc: Scenario =
+            Scenario::deserialize(toml::Value::Table(value)).map_err(|e| ScenarioError::Parse {
+                path: origin.into(),
+                message: e.to_string(),
+            })?;
         sc.resolve_paths(base);
-        sc.check().map_err(|message| ScenarioError::Parse { path: origin.into(), message })?;
+        sc.check().map_err(|message| ScenarioError::Parse {
+            path: origin.into(),
+            message,
+        })?;
         Ok(sc)
     }
 
@@ -214,15 +239,23 @@ impl Scenario {
     /// Range checks on the settings themselves.
     pub fn check(&self) -> Result<(), String> {
         let pos = |name: &str, v: Option<f64>| match v {
-            Some(x) if !(x.is_finite() && x > 0.0) => Err(format!("{name} must be a positive number, got {x}")),
+            Some(x) if !(x.is_finite() && x > 0.0) => {
+                Err(format!("{name} must be a positive number, got {x}"))
+            }
             _ => Ok(()),
         };
-        pos("resolution.layer_thickness", self.resolution.layer_thickness)?;
+        pos(
+            "resolution.layer_thickness",
+            self.resolution.layer_thickness,
+        )?;
         pos("resolution.marker_spacing", self.resolution.marker_spacing)?;
         pos("resolution.draw_increment", self.resolution.draw_increment)?;
         pos("flow.q", Some(self.flow.q))?;
         pos("flow.shear_band_factor", Some(self.flow.shear_band_factor))?;
-        pos("flow.default_opening_width", Some(self.flow.default_opening_width))?;
+        pos(
+            "flow.default_opening_width",
+            Some(self.flow.default_opening_width),
+        )?;
         pos("flow.min_porosity_jump", Some(self.flow.min_porosity_jump))?;
         pos("outputs.fines_cutoff", Some(self.outputs.fines_cutoff))?;
         Ok(())
@@ -232,10 +265,15 @@ impl Scenario {
 /// Applies one `section.key=value` override. The value is parsed as TOML (number, bool,
 /// string, array); a bare word that is not valid TOML is taken as a string.
 fn apply_set(root: &mut toml::Table, set: &str) -> Result<(), ScenarioError> {
-    let err = |message: String| ScenarioError::Parse { path: "--set".into(), message };
-    let (key, raw) = set
-        .split_once('=')
-        .ok_or_else(|| err(format!("`{set}`: expected key=value, e.g. resolution.layer_thickness=0.02")))?;
+    let err = |message: String| ScenarioError::Parse {
+        path: "--set".into(),
+        message,
+    };
+    let (key, raw) = set.split_once('=').ok_or_else(|| {
+        err(format!(
+            "`{set}`: expected key=value, e.g. resolution.layer_thickness=0.02"
+        ))
+    })?;
     let key = key.trim();
     let raw = raw.trim();
     let value: toml::Value = match format!("v = {raw}").parse::<toml::Table>() {

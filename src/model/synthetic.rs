@@ -54,7 +54,10 @@ impl UniformBox {
     /// Builds the scene.
     pub fn scene(&self) -> Scene {
         let n = [0, 1, 2].map(|a| ((self.extent[a] / self.block[a]).round() as usize).max(1));
-        let mut bm = BlockModel { size: self.block, ..Default::default() };
+        let mut bm = BlockModel {
+            size: self.block,
+            ..Default::default()
+        };
         let mut id = 0i64;
         for k in 0..n[2] {
             for j in 0..n[1] {
@@ -101,7 +104,15 @@ impl UniformBox {
             name: (1..=self.periods).map(|p| p.to_string()).collect(),
             days: vec![1.0; self.periods],
         };
-        let schedule = Schedule { n_drawpoints: nd, tonnes: vec![self.tonnes; nd * self.periods] };
-        Scene { blocks: bm, drawpoints, periods, schedule }
+        let schedule = Schedule {
+            n_drawpoints: nd,
+            tonnes: vec![self.tonnes; nd * self.periods],
+        };
+        Scene {
+            blocks: bm,
+            drawpoints,
+            periods,
+            schedule,
+        }
     }
 }

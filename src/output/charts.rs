@@ -1670,14 +1670,14 @@ impl Render for GradePage<'_> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     //! Set `CAVEFLOW_CHART_DIR` to keep the rendered test charts there for a look.
 
     use super::*;
     use std::collections::HashSet;
 
     /// A directory for test charts: `CAVEFLOW_CHART_DIR` if set, else a fresh temporary one.
-    fn out_dir(name: &str) -> (Option<tempfile::TempDir>, PathBuf) {
+    pub(crate) fn out_dir(name: &str) -> (Option<tempfile::TempDir>, PathBuf) {
         match std::env::var_os("CAVEFLOW_CHART_DIR") {
             Some(dir) => {
                 let dir = PathBuf::from(dir).join(name);

@@ -634,22 +634,7 @@ mod tests {
     use crate::model::synthetic::UniformBox;
     use crate::model::Scenario;
 
-    /// Where a test writes: `$CAVEFLOW_CHART_DIR/<name>` when set (to look at the charts),
-    /// else a temporary directory.
-    fn out_dir(name: &str) -> (Option<tempfile::TempDir>, PathBuf) {
-        match std::env::var_os("CAVEFLOW_CHART_DIR") {
-            Some(dir) => {
-                let dir = PathBuf::from(dir).join(name);
-                std::fs::create_dir_all(&dir).unwrap();
-                (None, dir)
-            }
-            None => {
-                let tmp = tempfile::tempdir().unwrap();
-                let dir = tmp.path().to_path_buf();
-                (Some(tmp), dir)
-            }
-        }
-    }
+    use crate::output::charts::tests::out_dir;
 
     fn two_drawpoints() -> UniformBox {
         UniformBox {

@@ -78,7 +78,6 @@ impl Manifest {
     }
 }
 
-
 /// Formats a time as RFC 3339 UTC to the second, e.g. `2000-02-29T00:00:00Z`. Times before
 /// 1970 are clamped to the epoch.
 pub fn rfc3339_utc(t: SystemTime) -> String {

@@ -26,9 +26,9 @@ pub mod parquet;
 pub mod run;
 
 pub use self::manifest::Manifest;
-pub use crate::model::load::InputFile;
 pub use self::parquet::{write_atomic, write_parquet, AtomicFile};
 pub use self::run::write_run;
+pub use crate::model::load::InputFile;
 
 /// A failure to write an output file. Every variant names the file.
 #[derive(Debug, thiserror::Error)]

@@ -29,7 +29,9 @@ fn f64s(v: Vec<f64>) -> ArrayRef {
 
 /// Float column where NaN (no marker drawn, so no value) is written as null.
 fn f64s_or_null(v: Vec<f64>) -> ArrayRef {
-    Arc::new(Float64Array::from_iter(v.into_iter().map(|x| (!x.is_nan()).then_some(x))))
+    Arc::new(Float64Array::from_iter(
+        v.into_iter().map(|x| (!x.is_nan()).then_some(x)),
+    ))
 }
 
 fn i64s(v: Vec<i64>) -> ArrayRef {
