@@ -54,8 +54,8 @@ pub struct Resolution {
     /// Marker lattice spacing, m. Default: 0.5 × h (MassFlow: 0.25 × block size with
     /// disks 0.5 × block size, the same ratio).
     pub marker_spacing: Option<f64>,
-    /// Draw increment, tonnes per drawpoint per step. Default: the tonnes of a quarter of the
-    /// opening disk's dilated volume, so one step never empties the lowest disk.
+    /// Draw increment: tonnes per drawpoint between marker updates. Default: the tonnes
+    /// of one opening disk, π (w/2)² h ρ_s (1 − n1) (see `engine::resolution`).
     pub draw_increment: Option<f64>,
 }
 
