@@ -177,6 +177,24 @@ fn read_bytes(name: &str, bytes: &[u8]) -> Result<caveflow::io::Table, Problems>
 // ---------------------------------------------------------------------------------------
 // Good files.
 
+/// The CSV text with one more column: `header` on the header line, `value` on data line
+/// `row` (1-based), empty elsewhere.
+fn with_column(csv: &str, header: &str, row: usize, value: &str) -> String {
+    csv.lines()
+        .enumerate()
+        .map(|(i, l)| {
+            let cell = if i == 0 {
+                header
+            } else if i == row {
+                value
+            } else {
+                ""
+            };
+            format!("{l},{cell}\n")
+        })
+        .collect()
+}
+
 #[test]
 fn valid_scene_loads() {
     let (dir, r) = load(Files::default());
@@ -865,23 +883,7 @@ fn mistyped() {
     assert!(pr.message.contains("decimal point"), "{pr}");
     // A non-numeric extra column of the block model is not a grade.
     let p = edited(|f| {
-        f.blocks = f
-            .blocks
-            .lines()
-            .enumerate()
-            .map(|(i, l)| {
-                format!(
-                    "{l},{}\n",
-                    if i == 0 {
-                        "comment"
-                    } else if i == 3 {
-                        "check me"
-                    } else {
-                        ""
-                    }
-                )
-            })
-            .collect();
+        f.blocks = with_column(&f.blocks, "comment", 3, "check me");
     });
     let pr = expect(&p, "blocks.csv", Some(3), Some("comment"), "mistyped");
     assert!(pr.message.contains("grade"), "{pr}");
@@ -1067,23 +1069,7 @@ fn fragment_and_strength_rules() {
     });
     expect(&p, "blocks.csv", Some(2), Some("UCS"), "not-positive");
     let p = edited(|f| {
-        f.blocks = f
-            .blocks
-            .lines()
-            .enumerate()
-            .map(|(i, l)| {
-                format!(
-                    "{l},{}\n",
-                    if i == 0 {
-                        "PercK2"
-                    } else if i == 2 {
-                        "-1"
-                    } else {
-                        ""
-                    }
-                )
-            })
-            .collect();
+        f.blocks = with_column(&f.blocks, "PercK2", 2, "-1");
     });
     expect(&p, "blocks.csv", Some(2), Some("PercK2"), "negative");
 }
