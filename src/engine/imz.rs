@@ -29,10 +29,17 @@
 //!   at no cost to the edge of the dilated ground (stepping out until the jump is back
 //!   above the floor), and the formula then uses the jump found there. So no division by
 //!   zero, and overlapped ground is engulfed, as superposition requires (summary §4.2).
+//!   Free widening keeps to the base angle (at most h / tan(45 + φ/2) wider than the disk
+//!   below), so overlapping IMZs merge through a funnel, not a step.
+//! - **Flowable reach.** A disk never widens past the farthest flowable point of its level
+//!   (`Ground::reach`): ground outside the model or not yet caved cannot be mobilised. A
+//!   disk may still be wider than the ground on one side (a drawpoint near a wall); the
+//!   void then fills only the flowable share A_f of its area (`Ground::area_fraction`),
+//!   so the marker pass divides vertical moves by A_f.
 //! - **Unflowable perimeter.** Points in uncaved blocks or outside the model cannot
 //!   dilate; the fraction f of flowable points scales the area that can grow:
 //!   R_i ← sqrt(R_i² + r v_i / (π h (n1 − n0) f)); with f = 0 the disk cannot widen (r = 0).
-//!   A disk that reaches `r_cap` widens no further and passes the rest of its void up.
+//!   A disk that reaches its reach widens no further and passes the rest of its void up.
 //! - **Integration.** r depends on R_i, which grows as the void is taken, so within a disk
 //!   the law is integrated over the void (d(R_i²) = r(R_i) dv / (π h Δn f)) in sub-steps
 //!   small against the distance over which r changes (`Imz::absorb`). The void a disk
@@ -226,6 +233,8 @@ pub struct Stagnant {
     pub rho1: f64,
     /// Flowable share f of the perimeter points.
     pub flow_frac: f64,
+    /// Flowable share A_f of the disk's area (equal-area rings of perimeter points).
+    pub area_frac: f64,
     /// Radius at which these were sampled.
     pub sampled_at: f64,
 }
@@ -269,6 +278,52 @@ impl Ground<'_> {
             .is_some_and(|b| self.blocks.flowable(b, self.period))
     }
 
+    /// Reach of the flowable ground at level `z` from the axis (x, y): the largest distance
+    /// from the axis to a point of a flowable block in that layer (0 if there is none). A
+    /// disk wider than this covers every flowable point of its level, so it never grows
+    /// past it: ground outside the model or not yet caved cannot be mobilised.
+    pub fn reach(&self, x: f64, y: f64, z: f64) -> f64 {
+        let bm = self.blocks;
+        let Some([_, _, k]) = bm.cell([
+            bm.origin[0] + 0.5 * bm.size[0],
+            bm.origin[1] + 0.5 * bm.size[1],
+            z,
+        ]) else {
+            return 0.0;
+        };
+        let mut far2: f64 = 0.0;
+        for j in 0..bm.dims[1] {
+            for i in 0..bm.dims[0] {
+                let b = bm.index[i + bm.dims[0] * (j + bm.dims[1] * k)];
+                if b == crate::model::block_model::NO_BLOCK || !bm.flowable(b as usize, self.period)
+                {
+                    continue;
+                }
+                let x0 = bm.origin[0] + i as f64 * bm.size[0];
+                let y0 = bm.origin[1] + j as f64 * bm.size[1];
+                let dx = (x - x0).abs().max((x - x0 - bm.size[0]).abs());
+                let dy = (y - y0).abs().max((y - y0 - bm.size[1]).abs());
+                far2 = far2.max(dx * dx + dy * dy);
+            }
+        }
+        far2.sqrt()
+    }
+
+    /// Flowable share A_f of the area of a disk of radius `radius` at level `z`: the share
+    /// of flowable points on four equal-area rings (radii R √((k + ½)/4)) of 24 points.
+    pub fn area_fraction(&self, x: f64, y: f64, z: f64, radius: f64) -> f64 {
+        const RINGS: usize = 4;
+        let mut n = 0usize;
+        for ring in 0..RINGS {
+            let a = radius * ((ring as f64 + 0.5) / RINGS as f64).sqrt();
+            for k in 0..PERIMETER_POINTS {
+                let t = 2.0 * PI * (k as f64 + 0.5 * ring as f64) / PERIMETER_POINTS as f64;
+                n += usize::from(self.flowable([x + a * t.cos(), y + a * t.sin(), z]));
+            }
+        }
+        n as f64 / (RINGS * PERIMETER_POINTS) as f64
+    }
+
     /// Stagnant properties of a disk of IMZ `me` at radius `radius` and mid-height `z`:
     /// the mean of 24 equally spaced perimeter points.
     pub fn stagnant(&self, me: usize, x: f64, y: f64, z: f64, radius: f64) -> Stagnant {
@@ -298,6 +353,7 @@ impl Ground<'_> {
             s.rho1 /= k;
         }
         s.flow_frac = n as f64 / PERIMETER_POINTS as f64;
+        s.area_frac = self.area_fraction(x, y, z, radius);
         s
     }
 }
@@ -334,6 +390,9 @@ pub struct DiskMotion {
     pub n1: f64,
     /// Janssen normal stress σ_n = ρ_s (1 − n1) g R / (2 tan φ), kPa.
     pub sigma_n: f64,
+    /// Flowable share A_f of the disk's area: the void spreads over the material that
+    /// exists, so vertical moves are divided by it (1 for a disk in open ground).
+    pub area_frac: f64,
 }
 
 /// One drawpoint's IMZ.
@@ -353,6 +412,9 @@ pub struct Imz {
     pub mobilised: Vec<Mobilised>,
     /// Radius up to which lattice sites have been engulfed, per disk.
     pub r_engulfed: Vec<f64>,
+    /// Per disk, the reach of flowable ground at its level (`Ground::reach`), the most a
+    /// disk can widen; NaN until computed, reset when ground caves.
+    pub reach: Vec<f64>,
     /// Void that reached unflowable ground: the air gap above this IMZ, m³.
     pub air: f64,
     /// True once the top could not open a new disk.
@@ -399,6 +461,7 @@ impl Imz {
             }],
             mobilised: vec![Mobilised::default()],
             r_engulfed: vec![0.0],
+            reach: vec![f64::NAN],
             air: 0.0,
             blocked: false,
         }
@@ -425,6 +488,26 @@ impl Imz {
             let s = &self.stagnant[i];
             (s.d, s.phi, s.rho1)
         }
+    }
+
+    /// Newly caved ground: perimeters, reaches and engulfment must be looked at again.
+    pub fn ground_changed(&mut self) {
+        self.r_engulfed.iter_mut().for_each(|r| *r = 0.0);
+        self.reach.iter_mut().for_each(|r| *r = f64::NAN);
+        self.stagnant
+            .iter_mut()
+            .for_each(|s| s.sampled_at = f64::NAN);
+    }
+
+    /// The largest radius disk i may reach: the reach of flowable ground at its level,
+    /// and never more than `r_cap`.
+    fn cap(&mut self, i: usize, g: &Ground, p: &ImzParams) -> f64 {
+        if self.reach[i].is_nan() {
+            self.reach[i] = g.reach(self.geom.x, self.geom.y, self.z_mid(i));
+        }
+        // Disk 0 keeps at least its opening.
+        let floor = if i == 0 { self.r_open } else { 0.0 };
+        self.reach[i].min(p.r_cap).max(floor)
     }
 
     fn refresh_stagnant(&mut self, i: usize, g: &Ground, p: &ImzParams) {
@@ -479,6 +562,7 @@ impl Imz {
                 });
                 self.mobilised.push(Mobilised::default());
                 self.r_engulfed.push(0.0);
+                self.reach.push(f64::NAN);
             }
             self.refresh_stagnant(i, g, p);
             let (d, phi, _) = self.props(i);
@@ -495,17 +579,18 @@ impl Imz {
                 0.0
             };
             if r > 0.0 {
-                let jump = self.usable_jump(i, g, p);
+                let jump = self.usable_jump(i, r_below, phi, g, p);
                 let f = self.stagnant[i].flow_frac;
                 self.motion[i].jump = jump;
                 if f > 0.0 {
-                    v = self.absorb(i, v, r_below, d, phi, jump, f, p);
+                    let cap = self.cap(i, g, p);
+                    v = self.absorb(i, v, r_below, d, phi, jump, f, cap, p);
                     // The remainder of a cycle that has all but vanished is absorbed here,
                     // so the cycle ends and the void is conserved.
                     if v <= 1e-12 * v0 {
                         let k = PI * h * jump * f;
                         let r_i = self.geom.radius[i];
-                        self.geom.radius[i] = (r_i * r_i + v / k).sqrt().min(p.r_cap);
+                        self.geom.radius[i] = (r_i * r_i + v / k).sqrt().min(cap);
                         v = 0.0;
                     }
                 }
@@ -534,6 +619,7 @@ impl Imz {
         phi: f64,
         jump: f64,
         f: f64,
+        cap: f64,
         p: &ImzParams,
     ) -> f64 {
         let h = self.geom.h;
@@ -554,9 +640,9 @@ impl Imz {
             big_r = (big_r * big_r + r * dv / k).sqrt();
             passed += (1.0 - r) * dv;
             rem -= dv;
-            if big_r >= p.r_cap {
-                // Nothing beyond the cap can dilate: the rest goes up.
-                big_r = p.r_cap;
+            if big_r >= cap {
+                // Nothing beyond the reach of flowable ground can dilate: the rest goes up.
+                big_r = cap;
                 passed += rem;
                 break;
             }
@@ -567,15 +653,23 @@ impl Imz {
 
     /// The porosity jump disk i can use, widening the disk for free across ground that is
     /// already dilated (see the module docs).
-    fn usable_jump(&mut self, i: usize, g: &Ground, p: &ImzParams) -> f64 {
+    fn usable_jump(&mut self, i: usize, r_below: f64, phi: f64, g: &Ground, p: &ImzParams) -> f64 {
         let mut jump = self.stagnant[i].jump();
         if jump >= p.min_jump {
             return jump;
         }
-        let step = (0.25 * p.resample).max(1e-3 * p.r_cap);
+        // Free widening keeps to the base angle: never more than h / tan(45 + φ/2) wider
+        // than the disk below, where the r-law's bracket closes (so overlapping IMZs merge
+        // through a funnel at 45 + φ/2, not a step).
+        let slope = (45.0 + 0.5 * phi).to_radians().tan();
+        let cap = self.cap(i, g, p).min(r_below + self.geom.h / slope);
+        if self.geom.radius[i] >= cap {
+            return jump.max(p.min_jump);
+        }
+        let step = (0.25 * p.resample).max(1e-3 * cap);
         let mut r = self.geom.radius[i];
-        while r < p.r_cap {
-            r = (r + step).min(p.r_cap);
+        while r < cap {
+            r = (r + step).min(cap);
             let s = g.stagnant(self.id, self.geom.x, self.geom.y, self.z_mid(i), r);
             self.stagnant[i] = s;
             jump = s.jump();
@@ -598,13 +692,18 @@ impl Imz {
         }
     }
 
-    /// Fills the per-disk motion fields read by the marker pass (after the draw).
-    pub fn finish_interval(&mut self, p: &ImzParams) {
+    /// Fills the per-disk motion fields read by the marker pass (after the draw),
+    /// resampling the ground of the disks that moved.
+    pub fn finish_interval(&mut self, g: &Ground, p: &ImzParams) {
         for i in 0..self.disks() {
+            if self.motion[i].dv > 0.0 {
+                self.refresh_stagnant(i, g, p);
+            }
             let (d, phi, rho1) = self.props(i);
             let st = self.stagnant[i];
             let m = &mut self.motion[i];
             m.r = self.geom.radius[i];
+            m.area_frac = st.area_frac.max(1.0 / 96.0);
             m.w = p.shear_band_factor * d;
             m.n1 = if st.n1 > 0.0 { st.n1 } else { m.n1 };
             if m.jump <= 0.0 {

@@ -258,6 +258,13 @@ pub fn radial(r_old: f64, r_new: f64, jump: f64, n1: f64, a: f64) -> f64 {
 
 impl MotionField<'_> {
     /// Displacement of a marker at `p` by every drawing IMZ that contains it.
+    ///
+    /// Vertical and expansion moves superpose linearly (summary §4.2). The transfer into a
+    /// narrower disk below (Δa′, Δz′) is not linear: it maps the whole radius a_m of a
+    /// marker that crosses a disk base. Each IMZ's transfer is therefore weighted by that
+    /// IMZ's share of the marker's vertical move, |Δz_d| / Σ|Δz|: alone it applies in
+    /// full (the summary's rule), and a marker that the draw of one IMZ carries across
+    /// another's disk boundary by a hair is not pulled towards the other's axis.
     #[inline]
     pub fn step(&self, p: [f64; 3]) -> Step {
         let mut st = Step {
@@ -265,7 +272,11 @@ impl MotionField<'_> {
             ..Default::default()
         };
         let mut strongest = 0.0f64;
-        let mut lowest_base_by = u32::MAX;
+        let mut total = 0.0f64;
+        // Transfers (dx, dy, dz) per IMZ with the |Δz| that weighs them.
+        let mut transfers: [(f64, f64, f64, f64); 8] = [(0.0, 0.0, 0.0, 0.0); 8];
+        let mut extra: Vec<(f64, f64, f64, f64)> = Vec::new();
+        let mut n_tr = 0usize;
         for &d in self.grid.at(p[0], p[1]) {
             let g = &self.geoms[d as usize];
             let motion = self.motion[d as usize];
@@ -280,24 +291,45 @@ impl MotionField<'_> {
             if a > m.r {
                 continue;
             }
-            let mut dz = vertical(m.dv, m.r, m.w, a);
-            let mut da = radial(m.r_old, m.r, m.jump, m.n1, a);
+            // The void entering the disk's base is Δv_i and the void leaving through its top
+            // Δv_{i+1} = (1 − r) Δv_i; the share r dilates the disk. Interpolating Δv
+            // linearly over the disk's height spreads that dilation through the disk
+            // (markers move apart vertically), instead of moving the disk rigidly and
+            // leaving the void as a marker-free gap at its top. Both integrate to the same
+            // volumes through the disk's base and top. The void fills the flowable share
+            // A_f of the disk only, so the move is divided by it.
+            let t_in = t - i as f64;
+            let dv_top = motion.get(i + 1).map_or(0.0, |u| u.dv);
+            let dv = m.dv + (dv_top - m.dv) * t_in;
+            let dz = vertical(dv, m.r, m.w, a) / m.area_frac;
+            let da = radial(m.r_old, m.r, m.jump, m.n1, a);
+            let (ux, uy) = if a > 0.0 {
+                (ex / a, ey / a)
+            } else {
+                (0.0, 0.0)
+            };
+            st.dx += da * ux;
+            st.dy += da * uy;
+            st.dz += dz;
+            total += dz.abs();
             // Transfer into a narrower disk below (Δa′, Δz′).
             let z_base = g.z0 + i as f64 * g.h;
             if i > 0 && p[2] + dz < z_base {
                 let r_below = motion[i - 1].r;
                 if r_below < m.r && r_below > 0.0 {
                     let a1 = (a + da).max(0.0);
-                    da += -(1.0 - r_below / m.r) * a1;
+                    let da_t = -(1.0 - r_below / m.r) * a1;
                     let depth = z_base - (p[2] + dz);
-                    dz += -depth * (m.r * m.r - r_below * r_below) / (r_below * r_below);
+                    let dz_t = -depth * (m.r * m.r - r_below * r_below) / (r_below * r_below);
+                    let tr = (da_t * ux, da_t * uy, dz_t, dz.abs());
+                    if n_tr < transfers.len() {
+                        transfers[n_tr] = tr;
+                        n_tr += 1;
+                    } else {
+                        extra.push(tr);
+                    }
                 }
             }
-            if a > 0.0 {
-                st.dx += da * ex / a;
-                st.dy += da * ey / a;
-            }
-            st.dz += dz;
             // Shear strain in the annulus (a > R − w; the whole disk when R ≤ w).
             if a > m.r - m.w {
                 let gamma = dz.abs() / m.r.min(m.w).max(1e-12);
@@ -306,11 +338,19 @@ impl MotionField<'_> {
             }
             if dz.abs() > strongest {
                 strongest = dz.abs();
-                lowest_base_by = d;
+                st.drawn_by = d;
             }
         }
-        if lowest_base_by != u32::MAX && p[2] + st.dz < self.geoms[lowest_base_by as usize].z0 {
-            st.drawn_by = lowest_base_by;
+        if total > 0.0 {
+            for &(tx, ty, tz, w) in transfers[..n_tr].iter().chain(&extra) {
+                let share = w / total;
+                st.dx += share * tx;
+                st.dy += share * ty;
+                st.dz += share * tz;
+            }
+        }
+        if st.drawn_by != u32::MAX && p[2] + st.dz >= self.geoms[st.drawn_by as usize].z0 {
+            st.drawn_by = u32::MAX;
         }
         st
     }

@@ -199,12 +199,7 @@ impl<'a> Engine<'a> {
         };
         if p == 0 || bm.cave_period.iter().any(|&c| c > prev && c <= period) {
             // Newly caved ground: perimeters and engulfment must be looked at again.
-            for imz in &mut self.imzs {
-                imz.r_engulfed.iter_mut().for_each(|r| *r = 0.0);
-                imz.stagnant
-                    .iter_mut()
-                    .for_each(|s| s.sampled_at = f64::NAN);
-            }
+            self.imzs.iter_mut().for_each(Imz::ground_changed);
         }
         self.refresh_mobilised();
         let row = scene.schedule.period(p);
@@ -254,7 +249,7 @@ impl<'a> Engine<'a> {
             .for_each(|imz| {
                 imz.begin_interval();
                 imz.draw(row[imz.id] / steps as f64, &ground, &params);
-                imz.finish_interval(&params);
+                imz.finish_interval(&ground, &params);
             });
         self.engulf(period, drawing);
         let geoms: Vec<ImzGeom> = self.imzs.iter().map(|m| m.geom.clone()).collect();

@@ -250,7 +250,12 @@ pub fn drawdown_section(
                 .filter(|&i| imz.period[i] == last && imz.drawpoint[i] as usize == d)
                 .map(|i| (imz.z_base[i], imz.z_top[i], imz.radius[i]))
                 .collect();
-            let outline = imz_outline(&disks, dp.x[d]);
+            // A disk may be wider than the ground it covers (it spans every flowable
+            // point of its level, see `engine::imz`); the section shows it within the model.
+            let outline: Vec<(f64, f64)> = imz_outline(&disks, dp.x[d])
+                .into_iter()
+                .map(|(x, z)| (x.clamp(bm.origin[0], max[0]), z))
+                .collect();
             if !outline.is_empty() {
                 section.imz.push(outline);
             }
