@@ -81,7 +81,18 @@ pub struct RunArgs {
     /// Worker threads (default: all cores).
     #[arg(long)]
     pub threads: Option<usize>,
+    /// Resume from the checkpoint in the output directory, if there is one made from the
+    /// same inputs and scenario (otherwise start from the first period).
+    #[arg(long)]
+    pub resume: bool,
+    /// Write a checkpoint every N periods (0: never). It is removed once the outputs are
+    /// written.
+    #[arg(long, default_value_t = 1, value_name = "N")]
+    pub checkpoint_every: usize,
 }
+
+/// Name of the checkpoint file in the output directory.
+pub const CHECKPOINT_FILE: &str = "checkpoint.bin";
 
 /// `caveflow schema`.
 #[derive(Debug, Args)]
@@ -218,16 +229,45 @@ fn run(a: RunArgs) -> Result<ExitCode> {
         eprintln!("warning: {w}");
     }
     let scene = &loaded.scene;
-    let engine = Engine::new(scene, &sc)?;
-    let bar = progress(scene.periods.len() as u64, "periods");
-    let out = engine.run(&mut |done, _| bar.set_position(done as u64));
-    bar.finish_and_clear();
     let dir = &sc.outputs.dir;
     let mut inputs = loaded.inputs.clone();
     if let Some(path) = &a.input.scenario {
         inputs
             .push(InputFile::new("scenario", path, 0).with_context(|| path.display().to_string())?);
     }
+    // A checkpoint belongs to these inputs and this scenario only.
+    let tag = {
+        let mut text = serde_json::to_string(&sc).context("scenario")?;
+        for f in &loaded.inputs {
+            text.push_str(&f.sha256);
+        }
+        crate::io::sha256_hex(text.as_bytes())
+    };
+    let checkpoint = dir.join(CHECKPOINT_FILE);
+    let (engine, first) = match std::fs::read(&checkpoint) {
+        Ok(bytes) if a.resume => {
+            let (e, next) = Engine::resume(scene, &sc, &bytes, &tag)
+                .with_context(|| checkpoint.display().to_string())?;
+            eprintln!("resuming at period {} of {}", next + 1, scene.periods.len());
+            (e, next)
+        }
+        _ => (Engine::new(scene, &sc)?, 0),
+    };
+    let bar = progress(scene.periods.len() as u64, "periods");
+    bar.set_position(first as u64);
+    let every = a.checkpoint_every;
+    let out = engine.run_from(
+        first,
+        &mut |done, _| bar.set_position(done as u64),
+        &mut |e: &Engine, next: usize| -> Result<()> {
+            if every > 0 && next % every == 0 && next < scene.periods.len() {
+                std::fs::create_dir_all(dir).with_context(|| dir.display().to_string())?;
+                output::write_atomic(&checkpoint, &e.checkpoint(next, &tag))?;
+            }
+            Ok(())
+        },
+    )?;
+    bar.finish_and_clear();
     let command = std::env::args().collect::<Vec<_>>().join(" ");
     let charts = if sc.outputs.charts {
         output::figures::write_run_charts(dir, scene, &out, None)?
@@ -247,6 +287,10 @@ fn run(a: RunArgs) -> Result<ExitCode> {
         eprintln!("warning: {w}");
     }
     let files = output::write_run(dir, scene, out, &manifest)?;
+    // The outputs are complete: the checkpoint has served.
+    if checkpoint.exists() {
+        std::fs::remove_file(&checkpoint).with_context(|| checkpoint.display().to_string())?;
+    }
     println!(
         "drew {:.0} t of {:.0} t scheduled ({} markers drawn of {} mobilised) in {:.1} s",
         b.credited_tonnes,

@@ -77,7 +77,7 @@ pub fn grown_radius(r_i: f64, r: f64, v: f64, h: f64, jump: f64, flow_frac: f64)
 }
 
 /// Geometry of one IMZ as seen by other IMZs and the marker pass.
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
 pub struct ImzGeom {
     /// Axis Easting, m.
     pub x: f64,
@@ -219,7 +219,7 @@ pub struct Ground<'a> {
 }
 
 /// Stagnant properties of a disk (mean over its flowable perimeter points).
-#[derive(Debug, Clone, Copy, Default)]
+#[derive(Debug, Clone, Copy, Default, serde::Serialize, serde::Deserialize)]
 pub struct Stagnant {
     /// Mean current porosity (n1 where already dilated, else n0).
     pub n0: f64,
@@ -359,7 +359,7 @@ impl Ground<'_> {
 }
 
 /// Mobilised-property sums of the markers inside one disk.
-#[derive(Debug, Clone, Copy, Default)]
+#[derive(Debug, Clone, Copy, Default, serde::Serialize, serde::Deserialize)]
 pub struct Mobilised {
     /// Σ d̄ of markers.
     pub d: f64,
@@ -374,7 +374,7 @@ pub struct Mobilised {
 }
 
 /// Per-disk state that the marker pass reads, accumulated since the last marker update.
-#[derive(Debug, Clone, Copy, Default)]
+#[derive(Debug, Clone, Copy, Default, serde::Serialize, serde::Deserialize)]
 pub struct DiskMotion {
     /// R_i now, m.
     pub r: f64,
@@ -396,7 +396,7 @@ pub struct DiskMotion {
 }
 
 /// One drawpoint's IMZ.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct Imz {
     /// Index of this IMZ (= drawpoint index).
     pub id: usize,

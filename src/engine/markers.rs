@@ -118,7 +118,7 @@ impl Lattice {
 
 /// Mobilised markers, struct of arrays. Row order is an implementation detail; `id` is
 /// the stable identity (the lattice site).
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
 pub struct Markers {
     /// Marker id (lattice site index).
     pub id: Vec<u64>,
@@ -141,7 +141,7 @@ pub struct Markers {
 }
 
 /// Drawn markers: the moving columns plus who drew them and when.
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
 pub struct DrawnMarkers {
     /// The markers as they were when drawn.
     pub m: Markers,

@@ -22,6 +22,7 @@
 //! factor cannot credit is reported as `shortfall_tonnes` and carried forward, so over a
 //! run the credited tonnes equal the schedule up to the final carry, which is reported.
 
+pub mod checkpoint;
 pub mod imz;
 pub mod markers;
 pub mod resolution;
@@ -50,6 +51,9 @@ pub enum EngineError {
         /// Limit.
         limit: usize,
     },
+    /// A checkpoint that cannot be resumed.
+    #[error("cannot resume from the checkpoint: {0}")]
+    Checkpoint(String),
 }
 
 /// Largest lattice the engine accepts (one byte of state per site).
@@ -168,13 +172,30 @@ impl<'a> Engine<'a> {
     }
 
     /// Runs every period; `progress(done, total)` is called after each period.
-    pub fn run(mut self, progress: &mut dyn FnMut(usize, usize)) -> RunOutput {
+    pub fn run(self, progress: &mut dyn FnMut(usize, usize)) -> RunOutput {
+        let none = &mut |_: &Engine, _: usize| Ok::<(), std::convert::Infallible>(());
+        match self.run_from(0, progress, none) {
+            Ok(out) => out,
+            Err(never) => match never {},
+        }
+    }
+
+    /// Runs the periods from index `first` on. After each period, `progress(done, total)`
+    /// is called, then `after(&engine, next)` with the index of the next period (the
+    /// place to write a checkpoint); an error from `after` stops the run.
+    pub fn run_from<E>(
+        mut self,
+        first: usize,
+        progress: &mut dyn FnMut(usize, usize),
+        after: &mut dyn FnMut(&Engine, usize) -> Result<(), E>,
+    ) -> Result<RunOutput, E> {
         let n = self.scene.periods.len();
-        for p in 0..n {
+        for p in first..n {
             self.run_period(p);
             progress(p + 1, n);
+            after(&self, p + 1)?;
         }
-        self.finish()
+        Ok(self.finish())
     }
 
     fn grid_cell(&self) -> f64 {

@@ -1,7 +1,7 @@
 //! What a run produces, column-wise, before it is written.
 
 /// Marker states (`markers.state`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
 #[repr(u8)]
 pub enum MarkerState {
     /// Never mobilised: at its lattice origin.
@@ -24,7 +24,7 @@ impl MarkerState {
 }
 
 /// Extraction report rows (drawpoint-major within period order).
-#[derive(Debug, Clone, Default, PartialEq)]
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Extraction {
     /// Drawpoint index.
     pub drawpoint: Vec<u32>,
@@ -57,6 +57,7 @@ pub struct Extraction {
     /// Air gap volume above the drawpoint so far.
     pub air_gap: Vec<f64>,
     /// ok | short | idle.
+    #[serde(deserialize_with = "static_statuses")]
     pub status: Vec<&'static str>,
     /// `grades[g][row]`.
     pub grades: Vec<Vec<f64>>,
@@ -65,7 +66,7 @@ pub struct Extraction {
 }
 
 /// IMZ geometry rows.
-#[derive(Debug, Clone, Default, PartialEq)]
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct ImzTable {
     /// Drawpoint index.
     pub drawpoint: Vec<u32>,
@@ -82,7 +83,7 @@ pub struct ImzTable {
 }
 
 /// Drawn markers (IEZ).
-#[derive(Debug, Clone, Default, PartialEq)]
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct DrawnTable {
     /// Marker id.
     pub marker_id: Vec<i64>,
@@ -105,7 +106,7 @@ pub struct DrawnTable {
 }
 
 /// Marker states at the end of one period.
-#[derive(Debug, Clone, Default, PartialEq)]
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct MarkerSnapshot {
     /// Period number.
     pub period: i64,
@@ -144,7 +145,7 @@ pub struct MarkerSnapshot {
 }
 
 /// Mass balance of a run.
-#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct MassBalance {
     /// Total scheduled, t.
     pub scheduled_tonnes: f64,
@@ -163,7 +164,7 @@ pub struct MassBalance {
 }
 
 /// Resolution actually used.
-#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct ResolvedResolution {
     /// Disk thickness h, m.
     pub layer_thickness: f64,
@@ -174,7 +175,7 @@ pub struct ResolvedResolution {
 }
 
 /// Everything a run produces.
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
 pub struct RunOutput {
     /// Extraction report.
     pub extraction: Extraction,
@@ -190,4 +191,22 @@ pub struct RunOutput {
     pub balance: MassBalance,
     /// Resolution used.
     pub resolution: ResolvedResolution,
+}
+
+/// Row statuses of the extraction report.
+pub const STATUSES: [&str; 3] = ["ok", "short", "idle"];
+
+/// Reads `Extraction::status` back from a checkpoint as the static names.
+fn static_statuses<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Vec<&'static str>, D::Error> {
+    let names: Vec<String> = serde::Deserialize::deserialize(d)?;
+    names
+        .iter()
+        .map(|n| {
+            STATUSES
+                .iter()
+                .find(|s| *s == n)
+                .copied()
+                .ok_or_else(|| serde::de::Error::custom(format!("unknown row status {n:?}")))
+        })
+        .collect()
 }
