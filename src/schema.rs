@@ -288,7 +288,9 @@ pub const EXTRACTION: TableSpec = TableSpec {
         f("hod", F64, "m", "Height of draw: cumulative tonnes / (column footprint x in-situ bulk density)", true, &[]),
         f("frag_size", F64, "m", "Mass-weighted mean fragment size of the drawn material (null when no marker was drawn)", false, &[]),
         f("fines_share", F64, "-", "Mass share of drawn material finer than the fines cut-off (null when no marker was drawn)", false, &[]),
-        f("air_gap", F64, "m3", "Void that reached unflowable ground above this drawpoint's IMZ so far (air gap)", true, &[]),
+        f("air_gap", F64, "m3", "Void that reached unflowable ground above this drawpoint's IMZ and is still stored there (air gap)", true, &[]),
+        f("rilled_share", F64, "-", "Mass share of the drawn material that rilled on the free surface (null when no marker was drawn)", false, &[]),
+        f("rill_distance", F64, "m", "Mass-weighted mean horizontal distance the rilled material rilled (null when none rilled)", false, &[]),
         f("status", Str, "-", "ok | short (could not deliver the schedule) | idle", true, &[]),
     ],
     extra: Some(ExtraColumns {
@@ -349,6 +351,14 @@ pub const DRAWN: TableSpec = TableSpec {
         f("mass", F64, "t", "Marker mass", true, &[]),
         f("block_id", I64, "-", "Block of origin", true, &[]),
         f("frag_size", F64, "m", "Fragment size when drawn", true, &[]),
+        f(
+            "rill_distance",
+            F64,
+            "m",
+            "Horizontal distance the marker rilled on the free surface (0 if it never rilled)",
+            true,
+            &[],
+        ),
     ],
     extra: None,
 };
@@ -423,6 +433,32 @@ pub const MANIFEST: TableSpec = TableSpec {
     extra: None,
 };
 
+/// Air gap per block column and period.
+pub const AIR_GAP: TableSpec = TableSpec {
+    name: "air_gap",
+    description: "Air gap per block column and period: the height of the air blocks (caved, holding less than rilling.air_fill of their in-situ mass; MassFlow: air once 0.75 empty) at the top of each caved stretch of the column, under uncaved ground or open to the top of the model. Only columns with air are listed.",
+    fields: &[
+        f("period", I64, "-", "Period number", true, &[]),
+        f("x", F64, "m", "Block column centre Easting", true, &[]),
+        f("y", F64, "m", "Block column centre Northing", true, &[]),
+        f("air_gap", F64, "m", "Height of the column's air blocks", true, &[]),
+    ],
+    extra: None,
+};
+
+/// Free-surface height field.
+pub const SURFACE: TableSpec = TableSpec {
+    name: "surface",
+    description: "Free surface (top of the caved material) per marker-lattice column at the chosen periods (outputs.surface_periods; the last by default).",
+    fields: &[
+        f("period", I64, "-", "Period number", true, &[]),
+        f("x", F64, "m", "Column centre Easting", true, &[]),
+        f("y", F64, "m", "Column centre Northing", true, &[]),
+        f("z", F64, "m", "Top of the caved material in the column", true, &[]),
+    ],
+    extra: None,
+};
+
 /// Every table, for `caveflow schema`.
 pub const ALL: &[TableSpec] = &[
     BLOCK_MODEL,
@@ -435,6 +471,8 @@ pub const ALL: &[TableSpec] = &[
     IMZ,
     DRAWN,
     MARKERS,
+    AIR_GAP,
+    SURFACE,
     MANIFEST,
 ];
 

@@ -32,6 +32,8 @@ struct State {
     markers: Markers,
     drawn: DrawnMarkers,
     engulfed: Vec<bool>,
+    engulfed_mass: Vec<f64>,
+    steps: u64,
     carry: Vec<f64>,
     cum: Vec<f64>,
     out: RunOutput,
@@ -47,6 +49,8 @@ struct StateRef<'e> {
     markers: &'e Markers,
     drawn: &'e DrawnMarkers,
     engulfed: &'e [bool],
+    engulfed_mass: &'e [f64],
+    steps: u64,
     carry: &'e [f64],
     cum: &'e [f64],
     out: &'e RunOutput,
@@ -67,6 +71,8 @@ impl<'a> Engine<'a> {
             markers: &self.markers,
             drawn: &self.drawn,
             engulfed: &self.engulfed,
+            engulfed_mass: &self.engulfed_mass,
+            steps: self.steps,
             carry: &self.carry,
             cum: &self.cum,
             out: &self.out,
@@ -101,6 +107,7 @@ impl<'a> Engine<'a> {
             || s.carry.len() != n_dp
             || s.cum.len() != n_dp
             || s.engulfed.len() != e.engulfed.len()
+            || s.engulfed_mass.len() != e.engulfed_mass.len()
             || s.next > scene.periods.len()
         {
             return Err(bad("does not fit this scene".into()));
@@ -109,6 +116,8 @@ impl<'a> Engine<'a> {
         e.markers = s.markers;
         e.drawn = s.drawn;
         e.engulfed = s.engulfed;
+        e.engulfed_mass = s.engulfed_mass;
+        e.steps = s.steps;
         e.carry = s.carry;
         e.cum = s.cum;
         e.out = s.out;

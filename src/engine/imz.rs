@@ -19,7 +19,9 @@
 //!   that opening radius, so the base can widen only up to the 45 + φ/2 limit.
 //! - **New disks.** When void reaches the top disk a new, empty disk is opened on top
 //!   (R = 0, so r = 1 and the void dilates it). A disk is only opened where the ground on
-//!   the axis is flowable; otherwise the void stays as an air gap (`Imz::air`).
+//!   the axis is flowable; otherwise the void stays as an air gap (`Imz::air`). Once the
+//!   ground above caves, the next void to reach the top carries the stored air up with it
+//!   into the new disk, so the air gap closes as the cave catches up.
 //! - **Properties.** d̄ and φ of a disk are the mobilised properties (mean of the markers in
 //!   the disk, refreshed each period; the stagnant ones until it holds markers). n0 and n1
 //!   are the stagnant properties: the mean over 24 perimeter points of the block model and
@@ -554,6 +556,8 @@ impl Imz {
                     self.blocked = true;
                     return;
                 }
+                // The ground above has caved: the air gap stored at the top closes into it.
+                v += std::mem::take(&mut self.air);
                 self.geom.radius.push(0.0);
                 self.motion.push(DiskMotion::default());
                 self.stagnant.push(Stagnant {

@@ -138,6 +138,8 @@ pub struct Markers {
     pub strain: Vec<f64>,
     /// Accumulated shear work Γ σ_n, kPa.
     pub work: Vec<f64>,
+    /// Horizontal distance rilled on the free surface so far, m (`engine::rilling`).
+    pub rill: Vec<f64>,
 }
 
 /// Drawn markers: the moving columns plus who drew them and when.
@@ -174,6 +176,7 @@ impl Markers {
         self.frag.push(frag);
         self.strain.push(0.0);
         self.work.push(0.0);
+        self.rill.push(0.0);
     }
 
     /// Moves row `k` out (swap-remove) and appends it to `to`.
@@ -187,6 +190,7 @@ impl Markers {
         to.frag.push(self.frag.swap_remove(k));
         to.strain.push(self.strain.swap_remove(k));
         to.work.push(self.work.swap_remove(k));
+        to.rill.push(self.rill.swap_remove(k));
     }
 }
 

@@ -27,6 +27,7 @@ pub mod imz;
 pub mod markers;
 pub mod resolution;
 pub mod result;
+pub mod rilling;
 
 use rayon::prelude::*;
 
@@ -70,6 +71,8 @@ struct Tally {
     frag: f64,
     fines: f64,
     waste: f64,
+    rilled: f64,
+    rill_dist: f64,
 }
 
 /// The engine's state between steps. Create with [`Engine::new`], drive with
@@ -83,6 +86,10 @@ pub struct Engine<'a> {
     lattice: Lattice,
     marker_mass: Vec<f64>,
     engulfed: Vec<bool>,
+    /// In-situ mass engulfed per block, t (for the block fill and the air gap).
+    engulfed_mass: Vec<f64>,
+    /// Draw steps since the start of the run (rilling frequency).
+    steps: u64,
     /// One IMZ per drawpoint.
     pub imzs: Vec<Imz>,
     /// Moving markers.
@@ -154,6 +161,8 @@ impl<'a> Engine<'a> {
             lattice,
             marker_mass: lattice.marker_masses(bm),
             engulfed: vec![false; lattice.len()],
+            engulfed_mass: vec![0.0; bm.len()],
+            steps: 0,
             imzs,
             markers: Markers::default(),
             drawn: DrawnMarkers::default(),
@@ -241,10 +250,19 @@ impl<'a> Engine<'a> {
                 ok
             })
             .collect();
+        let rill = self.scenario.mechanisms.rilling;
+        let every = self.scenario.rilling.every_steps as u64;
         if max_t > 0.0 && !drawing.is_empty() {
             for _ in 0..steps {
                 self.step(period, row, steps, &drawing);
+                self.steps += 1;
+                if rill && every > 0 && self.steps % every == 0 {
+                    self.rill(period);
+                }
             }
+        }
+        if rill {
+            self.rill(period);
         }
         self.close_period(p, period);
     }
@@ -302,6 +320,93 @@ impl<'a> Engine<'a> {
         }
     }
 
+    /// One rilling step on the free surface (`rilling::rill`).
+    fn rill(&mut self, period: i64) {
+        let mut st = rilling::RillState {
+            lattice: &self.lattice,
+            blocks: &self.scene.blocks,
+            period,
+            engulfed: &mut self.engulfed,
+            engulfed_mass: &mut self.engulfed_mass,
+            marker_mass: &self.marker_mass,
+            markers: &mut self.markers,
+        };
+        rilling::rill(&mut st);
+    }
+
+    /// Air-gap height of every block column, appended to the air-gap table: the air blocks
+    /// (caved, holding less than `rilling.air_fill` of their in-situ mass) at the top of
+    /// each caved stretch of the column.
+    fn record_air_gap(&mut self, period: i64) {
+        let bm = &self.scene.blocks;
+        let mut mass: Vec<f64> = (0..bm.len())
+            .map(|b| {
+                bm.size.iter().product::<f64>() * bm.density[b] * (1.0 - bm.n0[b])
+                    - self.engulfed_mass[b]
+            })
+            .collect();
+        let mk = &self.markers;
+        for k in 0..mk.len() {
+            if let Some(b) = bm.locate([mk.x[k], mk.y[k], mk.z[k]]) {
+                mass[b] += mk.mass[k];
+            }
+        }
+        let fill = self.scenario.rilling.air_fill;
+        let t = &mut self.out.air_gap;
+        for j in 0..bm.dims[1] {
+            for i in 0..bm.dims[0] {
+                // From the top of each caved stretch of the column (under uncaved ground or
+                // open to the top of the model) down to its first block that is not air. A
+                // thin block deep in the flow (markers near a drawpoint move several blocks
+                // per update) is not an air gap.
+                let mut air = 0.0;
+                let mut open = true;
+                for k in (0..bm.dims[2]).rev() {
+                    let b = bm.index[i + bm.dims[0] * (j + bm.dims[1] * k)];
+                    if b == crate::model::block_model::NO_BLOCK || !bm.flowable(b as usize, period)
+                    {
+                        open = true;
+                        continue;
+                    }
+                    let b = b as usize;
+                    let full = bm.size.iter().product::<f64>() * bm.density[b] * (1.0 - bm.n0[b]);
+                    if open && mass[b] < fill * full {
+                        air += bm.size[2];
+                    } else {
+                        open = false;
+                    }
+                }
+                if air > 0.0 {
+                    t.period.push(period);
+                    t.x.push(bm.origin[0] + (i as f64 + 0.5) * bm.size[0]);
+                    t.y.push(bm.origin[1] + (j as f64 + 0.5) * bm.size[1]);
+                    t.air_gap.push(air);
+                }
+            }
+        }
+    }
+
+    /// Appends the free-surface height field to the surface table.
+    fn record_surface(&mut self, period: i64) {
+        let lat = &self.lattice;
+        let h = rilling::surface(
+            lat,
+            &self.scene.blocks,
+            period,
+            &self.engulfed,
+            &self.markers,
+        );
+        let t = &mut self.out.surface;
+        for (c, &z) in h.iter().enumerate() {
+            if z.is_finite() {
+                t.period.push(period);
+                t.x.push(lat.origin[0] + ((c % lat.n[0]) as f64 + 0.5) * lat.s);
+                t.y.push(lat.origin[1] + ((c / lat.n[0]) as f64 + 0.5) * lat.s);
+                t.z.push(z);
+            }
+        }
+    }
+
     /// Adds marker row `k` to drawpoint `d`'s tally for the period.
     fn credit(&mut self, k: usize, d: usize) {
         let bm = &self.scene.blocks;
@@ -319,6 +424,11 @@ impl<'a> Engine<'a> {
         t.fines += m * self.fines_frac[b];
         if self.waste[b] {
             t.waste += m;
+        }
+        let rilled = self.markers.rill[k];
+        if rilled > 0.0 {
+            t.rilled += m;
+            t.rill_dist += m * rilled;
         }
     }
 
@@ -391,6 +501,7 @@ impl<'a> Engine<'a> {
                 continue;
             }
             self.engulfed[id] = true;
+            self.engulfed_mass[b] += self.marker_mass[b];
             self.markers
                 .push(id as u64, p, self.marker_mass[b], b as u32, bm.frag[b]);
         }
@@ -470,6 +581,12 @@ impl<'a> Engine<'a> {
             ex.frag_size.push(per(t.frag));
             ex.fines_share.push(per(t.fines));
             ex.air_gap.push(self.imzs[d].air);
+            ex.rilled_share.push(per(t.rilled));
+            ex.rill_distance.push(if t.rilled > 0.0 {
+                t.rill_dist / t.rilled
+            } else {
+                f64::NAN
+            });
             let short = self.carry[d] > 1e-6 * target.max(1.0);
             ex.status.push(if scheduled <= 0.0 && t.count == 0 {
                 "idle"
@@ -498,6 +615,11 @@ impl<'a> Engine<'a> {
                     imz.radius.push(r);
                 }
             }
+        }
+        self.record_air_gap(period);
+        let wanted = &self.scenario.outputs.surface_periods;
+        if wanted.contains(&period) || (wanted.is_empty() && last) {
+            self.record_surface(period);
         }
         let wanted = &self.scenario.outputs.marker_periods;
         if wanted.contains(&period) || (wanted.is_empty() && last) {
@@ -573,6 +695,7 @@ impl<'a> Engine<'a> {
             t.mass.push(dm.m.mass[k]);
             t.block_id.push(bm.id[dm.m.block[k] as usize]);
             t.frag_size.push(dm.m.frag[k]);
+            t.rill_distance.push(dm.m.rill[k]);
         }
         let sched = &self.scene.schedule;
         let n_dp = self.scene.drawpoints.len();
@@ -595,7 +718,7 @@ impl<'a> Engine<'a> {
         for imz in &self.imzs {
             if imz.blocked {
                 self.out.warnings.push(format!(
-                    "drawpoint {}: IMZ reached unflowable ground; {:.3e} m3 of void is an air gap (air gap and rilling are modelled in a later mechanism)",
+                    "drawpoint {}: IMZ reached unflowable ground; {:.3e} m3 of void is still an air gap at the end of the run",
                     self.scene.drawpoints.name[imz.id], imz.air
                 ));
             }

@@ -56,6 +56,10 @@ pub struct Extraction {
     pub fines_share: Vec<f64>,
     /// Air gap volume above the drawpoint so far.
     pub air_gap: Vec<f64>,
+    /// Mass share of the drawn material that rilled on the free surface.
+    pub rilled_share: Vec<f64>,
+    /// Mass-weighted mean horizontal distance the rilled material rilled, m (NaN if none).
+    pub rill_distance: Vec<f64>,
     /// ok | short | idle.
     #[serde(deserialize_with = "static_statuses")]
     pub status: Vec<&'static str>,
@@ -101,6 +105,8 @@ pub struct DrawnTable {
     pub mass: Vec<f64>,
     /// Block id.
     pub block_id: Vec<i64>,
+    /// Horizontal distance rilled on the free surface, m.
+    pub rill_distance: Vec<f64>,
     /// Fragment size when drawn, m.
     pub frag_size: Vec<f64>,
 }
@@ -174,6 +180,32 @@ pub struct ResolvedResolution {
     pub draw_increment: f64,
 }
 
+/// Air gap per block column and period (rows only where there is air).
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct AirGapTable {
+    /// Period number.
+    pub period: Vec<i64>,
+    /// Block column centre.
+    pub x: Vec<f64>,
+    /// Block column centre.
+    pub y: Vec<f64>,
+    /// Height of the column's air blocks, m.
+    pub air_gap: Vec<f64>,
+}
+
+/// Free-surface height per lattice column at chosen periods.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct SurfaceTable {
+    /// Period number.
+    pub period: Vec<i64>,
+    /// Column centre.
+    pub x: Vec<f64>,
+    /// Column centre.
+    pub y: Vec<f64>,
+    /// Top of the caved material, m.
+    pub z: Vec<f64>,
+}
+
 /// Everything a run produces.
 #[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
 pub struct RunOutput {
@@ -185,6 +217,10 @@ pub struct RunOutput {
     pub drawn: DrawnTable,
     /// Marker snapshots.
     pub snapshots: Vec<MarkerSnapshot>,
+    /// Air gap per block column and period.
+    pub air_gap: AirGapTable,
+    /// Free surface at the chosen periods.
+    pub surface: SurfaceTable,
     /// Warnings (degraded validity, blocked drawpoints, ...).
     pub warnings: Vec<String>,
     /// Mass balance.

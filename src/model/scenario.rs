@@ -20,6 +20,8 @@ pub struct Scenario {
     pub flow: Flow,
     /// Optional mechanisms.
     pub mechanisms: Mechanisms,
+    /// Cave advance, air gap and rilling settings.
+    pub rilling: Rilling,
     /// What counts as waste for the dilution share.
     pub dilution: Dilution,
     /// What to write.
@@ -101,6 +103,27 @@ pub struct Mechanisms {
     pub stress: bool,
 }
 
+/// Cave advance, air gap and free-surface rilling (summary §8, `engine::rilling`).
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct Rilling {
+    /// Rill after every this many draw steps as well as at the end of each period (0: at
+    /// the end of each period only).
+    pub every_steps: usize,
+    /// A block counts as air once it holds less than this share of its in-situ mass
+    /// (MassFlow: air once 0.75 empty, i.e. 0.25).
+    pub air_fill: f64,
+}
+
+impl Default for Rilling {
+    fn default() -> Self {
+        Rilling {
+            every_steps: 0,
+            air_fill: 0.25,
+        }
+    }
+}
+
 /// Waste definition for the dilution share.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields, default)]
@@ -137,6 +160,8 @@ pub struct Outputs {
     pub charts: bool,
     /// Fragments finer than this are fines, m.
     pub fines_cutoff: f64,
+    /// Periods at whose end the free-surface height field is written (empty: the last).
+    pub surface_periods: Vec<i64>,
 }
 
 impl Default for Outputs {
@@ -147,6 +172,7 @@ impl Default for Outputs {
             imz_every_period: true,
             charts: true,
             fines_cutoff: 0.01,
+            surface_periods: Vec::new(),
         }
     }
 }
@@ -258,6 +284,12 @@ impl Scenario {
         )?;
         pos("flow.min_porosity_jump", Some(self.flow.min_porosity_jump))?;
         pos("outputs.fines_cutoff", Some(self.outputs.fines_cutoff))?;
+        if !(self.rilling.air_fill > 0.0 && self.rilling.air_fill < 1.0) {
+            return Err(format!(
+                "rilling.air_fill must lie strictly between 0 and 1, got {}",
+                self.rilling.air_fill
+            ));
+        }
         Ok(())
     }
 }

@@ -19,9 +19,11 @@ use std::sync::Arc;
 use arrow::array::{ArrayRef, Float64Array, Int64Array, StringArray};
 
 use super::{write_parquet, Manifest, OutputError};
-use crate::engine::result::{DrawnTable, Extraction, ImzTable, MarkerSnapshot, RunOutput};
+use crate::engine::result::{
+    AirGapTable, DrawnTable, Extraction, ImzTable, MarkerSnapshot, RunOutput, SurfaceTable,
+};
 use crate::model::Scene;
-use crate::schema::{TableSpec, DRAWN, EXTRACTION, IMZ, MARKERS};
+use crate::schema::{TableSpec, AIR_GAP, DRAWN, EXTRACTION, IMZ, MARKERS, SURFACE};
 
 fn f64s(v: Vec<f64>) -> ArrayRef {
     Arc::new(Float64Array::from(v))
@@ -82,6 +84,8 @@ pub fn write_extraction(path: &Path, scene: &Scene, t: Extraction) -> Result<(),
         ("frag_size", f64s_or_null(t.frag_size)),
         ("fines_share", f64s_or_null(t.fines_share)),
         ("air_gap", f64s(t.air_gap)),
+        ("rilled_share", f64s_or_null(t.rilled_share)),
+        ("rill_distance", f64s_or_null(t.rill_distance)),
         ("status", status),
     ];
     let grades = blocks
@@ -122,8 +126,31 @@ pub fn write_drawn(path: &Path, scene: &Scene, t: DrawnTable) -> Result<(), Outp
         ("mass", f64s(t.mass)),
         ("block_id", i64s(t.block_id)),
         ("frag_size", f64s(t.frag_size)),
+        ("rill_distance", f64s(t.rill_distance)),
     ];
     write_table(path, &DRAWN, fixed, Vec::new())
+}
+
+/// Writes the air-gap table.
+pub fn write_air_gap(path: &Path, t: AirGapTable) -> Result<(), OutputError> {
+    let fixed = vec![
+        ("period", i64s(t.period)),
+        ("x", f64s(t.x)),
+        ("y", f64s(t.y)),
+        ("air_gap", f64s(t.air_gap)),
+    ];
+    write_table(path, &AIR_GAP, fixed, Vec::new())
+}
+
+/// Writes the free-surface table.
+pub fn write_surface(path: &Path, t: SurfaceTable) -> Result<(), OutputError> {
+    let fixed = vec![
+        ("period", i64s(t.period)),
+        ("x", f64s(t.x)),
+        ("y", f64s(t.y)),
+        ("z", f64s(t.z)),
+    ];
+    write_table(path, &SURFACE, fixed, Vec::new())
 }
 
 /// Writes one marker snapshot as `<dir>/period=<N>/part-0.parquet` (Hive partitioning, so
@@ -187,6 +214,14 @@ pub fn write_run(
 
     let path = dir.join("drawn.parquet");
     write_drawn(&path, scene, run.drawn)?;
+    written.push(path);
+
+    let path = dir.join("air_gap.parquet");
+    write_air_gap(&path, run.air_gap)?;
+    written.push(path);
+
+    let path = dir.join("surface.parquet");
+    write_surface(&path, run.surface)?;
     written.push(path);
 
     let markers = dir.join("markers");

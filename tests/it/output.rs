@@ -11,8 +11,8 @@ use arrow::array::{ArrayRef, AsArray, Float64Array, RecordBatch};
 use arrow::compute::concat_batches;
 use arrow::datatypes::{DataType, Float64Type, Int64Type, Schema};
 use caveflow::engine::result::{
-    DrawnTable, Extraction, ImzTable, MarkerSnapshot, MarkerState, MassBalance, ResolvedResolution,
-    RunOutput,
+    AirGapTable, DrawnTable, Extraction, ImzTable, MarkerSnapshot, MarkerState, MassBalance,
+    ResolvedResolution, RunOutput, SurfaceTable,
 };
 use caveflow::model::demo::{self, DemoScale, BLOCK_HEIGHT, EXTRACTION_LEVEL_Z};
 use caveflow::model::{Scenario, Scene};
@@ -225,6 +225,8 @@ fn fake_run(scene: &Scene) -> RunOutput {
         frag_size: v(0.2),
         fines_share: v(0.001),
         air_gap: v(0.0),
+        rilled_share: v(0.05),
+        rill_distance: v(3.0),
         status: vec!["ok", "short", "idle", "ok", "ok", "short"],
         grades: vec![v(0.25)],
         lithology: (0..n_lith).map(|l| v(0.1 * l as f64)).collect(),
@@ -247,6 +249,7 @@ fn fake_run(scene: &Scene) -> RunOutput {
         mass: vec![12.5, 13.0],
         block_id: vec![1, 2],
         frag_size: vec![0.23, 0.04],
+        rill_distance: vec![0.0, 7.6],
     };
     let snapshot = |period: i64| MarkerSnapshot {
         period,
@@ -272,6 +275,18 @@ fn fake_run(scene: &Scene) -> RunOutput {
         imz,
         drawn,
         snapshots: vec![snapshot(2), snapshot(3)],
+        air_gap: AirGapTable {
+            period: vec![2, 3],
+            x: vec![10_003.8, 10_003.8],
+            y: vec![5_003.8, 5_003.8],
+            air_gap: vec![15.2, 30.4],
+        },
+        surface: SurfaceTable {
+            period: vec![3, 3],
+            x: vec![10_000.95, 10_002.85],
+            y: vec![5_000.95, 5_000.95],
+            z: vec![2_510.0, 2_505.5],
+        },
         warnings: vec!["drawpoint D01-02 short in period 1".into()],
         balance: MassBalance {
             scheduled_tonnes: 21_000.0,
@@ -318,6 +333,8 @@ fn run_directory_layout() {
         "extraction.parquet",
         "imz.parquet",
         "drawn.parquet",
+        "air_gap.parquet",
+        "surface.parquet",
         "markers/period=2/part-0.parquet",
         "markers/period=3/part-0.parquet",
         "manifest.json",
@@ -329,11 +346,13 @@ fn run_directory_layout() {
     assert_eq!(
         entries(&dir),
         [
+            "air_gap.parquet",
             "drawn.parquet",
             "extraction.parquet",
             "imz.parquet",
             "manifest.json",
-            "markers"
+            "markers",
+            "surface.parquet"
         ]
     );
     assert_eq!(entries(&dir.join("markers")), ["period=2", "period=3"]);
