@@ -334,6 +334,8 @@ pub struct DiskMotion {
     pub n1: f64,
     /// Janssen normal stress σ_n = ρ_s (1 − n1) g R / (2 tan φ), kPa.
     pub sigma_n: f64,
+    /// Mean fragment size d̄ of the disk, m.
+    pub d: f64,
 }
 
 /// One drawpoint's IMZ.
@@ -606,6 +608,7 @@ impl Imz {
             let m = &mut self.motion[i];
             m.r = self.geom.radius[i];
             m.w = p.shear_band_factor * d;
+            m.d = d;
             m.n1 = if st.n1 > 0.0 { st.n1 } else { m.n1 };
             if m.jump <= 0.0 {
                 m.jump = st.jump().max(p.min_jump);

@@ -20,6 +20,8 @@ pub struct Scenario {
     pub flow: Flow,
     /// Optional mechanisms.
     pub mechanisms: Mechanisms,
+    /// Constants of secondary fragmentation (used when `mechanisms.fragmentation` is on).
+    pub fragmentation: FragmentationParams,
     /// What counts as waste for the dilution share.
     pub dilution: Dilution,
     /// What to write.
@@ -99,6 +101,35 @@ pub struct Mechanisms {
     pub rilling: bool,
     /// Stress logic (summary §5.3).
     pub stress: bool,
+}
+
+/// Constants of Bridgwater's attrition law W = K_N (σ_N Γ^φ / σ_t)^β and of the
+/// attrition-product size distribution (summary §6.3; see `engine::fragmentation`).
+/// Bridgwater et al.'s published constants per particle shape were not at hand: every
+/// default here is an ASSUMPTION, to be replaced by calibration.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct FragmentationParams {
+    /// K_N (default 1.0, assumption).
+    pub k_n: f64,
+    /// β, exponent of the stress:strength ratio (default 1.0, assumption).
+    pub beta: f64,
+    /// φ, exponent of the shear strain (default 0.5, assumption).
+    pub phi: f64,
+    /// m in the attrition-product distribution (x/d0)^m, m = 3 − D (default 0.5: fractal
+    /// dimension D = 2.5, assumption).
+    pub product_exponent: f64,
+}
+
+impl Default for FragmentationParams {
+    fn default() -> Self {
+        FragmentationParams {
+            k_n: 1.0,
+            beta: 1.0,
+            phi: 0.5,
+            product_exponent: 0.5,
+        }
+    }
 }
 
 /// Waste definition for the dilution share.
@@ -258,6 +289,16 @@ impl Scenario {
         )?;
         pos("flow.min_porosity_jump", Some(self.flow.min_porosity_jump))?;
         pos("outputs.fines_cutoff", Some(self.outputs.fines_cutoff))?;
+        let f = &self.fragmentation;
+        if !(f.k_n.is_finite() && f.k_n >= 0.0) {
+            return Err(format!(
+                "fragmentation.k_n must be a number >= 0, got {}",
+                f.k_n
+            ));
+        }
+        pos("fragmentation.beta", Some(f.beta))?;
+        pos("fragmentation.phi", Some(f.phi))?;
+        pos("fragmentation.product_exponent", Some(f.product_exponent))?;
         Ok(())
     }
 }
