@@ -3,4 +3,5 @@
 mod cli;
 mod engine;
 mod io;
+mod mechanisms;
 mod output;
