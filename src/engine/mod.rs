@@ -487,7 +487,7 @@ impl<'a> Engine<'a> {
         let row = scene.schedule.period(p);
         let ex = &mut self.out.extraction;
         for d in 0..row.len() {
-            let t = std::mem::replace(
+            let mut t = std::mem::replace(
                 &mut self.tally[d],
                 Tally {
                     grade: vec![0.0; scene.blocks.grades.len()],
@@ -524,9 +524,10 @@ impl<'a> Engine<'a> {
                 .push(self.cum[d] / self.hod_density_area[d].max(1e-12));
             ex.frag_size.push(per(t.frag));
             ex.fines_share.push(per(t.fines));
-            ex.frag_p20.push(fragmentation::passing_size(&t.sizes, 0.2));
-            ex.frag_p50.push(fragmentation::passing_size(&t.sizes, 0.5));
-            ex.frag_p80.push(fragmentation::passing_size(&t.sizes, 0.8));
+            let [p20, p50, p80] = fragmentation::p20_p50_p80(&mut t.sizes);
+            ex.frag_p20.push(p20);
+            ex.frag_p50.push(p50);
+            ex.frag_p80.push(p80);
             let per_fines = |x: f64| if t.fines > 0.0 { x / t.fines } else { f64::NAN };
             ex.fines_origin_z.push(per_fines(t.fines_z));
             ex.fines_waste_share.push(per_fines(t.fines_waste));
