@@ -293,7 +293,7 @@ pub const EXTRACTION: TableSpec = TableSpec {
         f("frag_p80", F64, "m", "Size passed by 80 % of the drawn mass (P80; null when no marker was drawn)", false, &[]),
         f("fines_origin_z", F64, "m", "Mean origin elevation of the drawn fines (finer than the fines cut-off), weighted by fines mass (null when no fines were drawn)", false, &[]),
         f("fines_waste_share", F64, "-", "Share of the drawn fines that is waste per the scenario's waste rule, e.g. fines from the level above (null when no fines were drawn)", false, &[]),
-        f("percolated_share", F64, "-", "Mass share of the drawn material that percolated (fines migration) on its way (null when no marker was drawn)", false, &[]),
+        f("percolation", F64, "m", "Mass-weighted mean distance the drawn material percolated (fines migration) on its way down, beyond its bulk movement (null when no marker was drawn)", false, &[]),
         f("air_gap", F64, "m3", "Void that reached unflowable ground above this drawpoint's IMZ so far (air gap)", true, &[]),
         f("status", Str, "-", "ok | short (could not deliver the schedule) | idle", true, &[]),
     ],

@@ -79,7 +79,7 @@ struct Tally {
     fines_z: f64,
     /// Fines mass that is waste.
     fines_waste: f64,
-    /// Mass of markers that percolated.
+    /// Σ mass × accumulated percolation distance.
     percolated: f64,
 }
 
@@ -361,9 +361,7 @@ impl<'a> Engine<'a> {
         t.fines += m * fines;
         t.fines_z += m * fines * self.lattice.pos(mk.id[k] as usize)[2];
         t.sizes.push((dist, m));
-        if mk.percolated[k] > 0.0 {
-            t.percolated += m;
-        }
+        t.percolated += m * mk.percolated[k];
         if self.waste[b] {
             t.waste += m;
             t.fines_waste += m * fines;
@@ -531,7 +529,7 @@ impl<'a> Engine<'a> {
             let per_fines = |x: f64| if t.fines > 0.0 { x / t.fines } else { f64::NAN };
             ex.fines_origin_z.push(per_fines(t.fines_z));
             ex.fines_waste_share.push(per_fines(t.fines_waste));
-            ex.percolated_share.push(per(t.percolated));
+            ex.percolation.push(per(t.percolated));
             ex.air_gap.push(self.imzs[d].air);
             let short = self.carry[d] > 1e-6 * target.max(1.0);
             ex.status.push(if scheduled <= 0.0 && t.count == 0 {

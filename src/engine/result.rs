@@ -64,8 +64,8 @@ pub struct Extraction {
     pub fines_origin_z: Vec<f64>,
     /// Waste share of the drawn fines.
     pub fines_waste_share: Vec<f64>,
-    /// Mass share of the drawn markers that percolated on their way.
-    pub percolated_share: Vec<f64>,
+    /// Mass-weighted mean distance the drawn material percolated on its way, m.
+    pub percolation: Vec<f64>,
     /// Air gap volume above the drawpoint so far.
     pub air_gap: Vec<f64>,
     /// ok | short | idle.

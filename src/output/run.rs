@@ -86,7 +86,7 @@ pub fn write_extraction(path: &Path, scene: &Scene, t: Extraction) -> Result<(),
         ("frag_p80", f64s_or_null(t.frag_p80)),
         ("fines_origin_z", f64s_or_null(t.fines_origin_z)),
         ("fines_waste_share", f64s_or_null(t.fines_waste_share)),
-        ("percolated_share", f64s_or_null(t.percolated_share)),
+        ("percolation", f64s_or_null(t.percolation)),
         ("air_gap", f64s(t.air_gap)),
         ("status", status),
     ];

@@ -33,7 +33,7 @@ fn assert_same_additions(a: &RunOutput, b: &RunOutput, what: &str) {
             &y.fines_waste_share,
             "fines_waste_share",
         ),
-        (&x.percolated_share, &y.percolated_share, "percolated_share"),
+        (&x.percolation, &y.percolation, "percolation"),
     ] {
         assert_eq!(bits(u), bits(v), "{what}: extraction {f} differs");
     }

@@ -229,7 +229,7 @@ fn fake_run(scene: &Scene) -> RunOutput {
         frag_p80: v(0.3),
         fines_origin_z: v(2450.0),
         fines_waste_share: v(0.2),
-        percolated_share: v(0.02),
+        percolation: v(0.02),
         air_gap: v(0.0),
         status: vec!["ok", "short", "idle", "ok", "ok", "short"],
         grades: vec![v(0.25)],
@@ -396,7 +396,7 @@ fn extraction_round_trip() {
     assert_eq!(f64_col(&batch, "frag_p80"), t.frag_p80);
     assert_eq!(f64_col(&batch, "fines_origin_z"), t.fines_origin_z);
     assert_eq!(f64_col(&batch, "fines_waste_share"), t.fines_waste_share);
-    assert_eq!(f64_col(&batch, "percolated_share"), t.percolated_share);
+    assert_eq!(f64_col(&batch, "percolation"), t.percolation);
     assert_eq!(f64_col(&batch, "air_gap"), t.air_gap);
     assert_eq!(str_col(&batch, "status"), t.status);
     assert_eq!(f64_col(&batch, "mo"), t.grades[0]);
