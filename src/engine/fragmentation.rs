@@ -204,7 +204,7 @@ impl SizeDist {
             SizeDist::Attrited { d0, w, m } => {
                 if x >= d0 {
                     1.0
-                } else if x <= 0.0 {
+                } else if x <= 0.0 || w == 0.0 {
                     0.0
                 } else {
                     w * (x / d0).powf(m)
