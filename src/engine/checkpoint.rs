@@ -33,7 +33,7 @@ struct State {
     drawn: DrawnMarkers,
     engulfed: Vec<bool>,
     engulfed_mass: Vec<f64>,
-    steps: u64,
+    steps_done: u64,
     carry: Vec<f64>,
     cum: Vec<f64>,
     out: RunOutput,
@@ -50,7 +50,7 @@ struct StateRef<'e> {
     drawn: &'e DrawnMarkers,
     engulfed: &'e [bool],
     engulfed_mass: &'e [f64],
-    steps: u64,
+    steps_done: u64,
     carry: &'e [f64],
     cum: &'e [f64],
     out: &'e RunOutput,
@@ -72,7 +72,7 @@ impl<'a> Engine<'a> {
             drawn: &self.drawn,
             engulfed: &self.engulfed,
             engulfed_mass: &self.engulfed_mass,
-            steps: self.steps,
+            steps_done: self.steps_done,
             carry: &self.carry,
             cum: &self.cum,
             out: &self.out,
@@ -117,7 +117,7 @@ impl<'a> Engine<'a> {
         e.drawn = s.drawn;
         e.engulfed = s.engulfed;
         e.engulfed_mass = s.engulfed_mass;
-        e.steps = s.steps;
+        e.steps_done = s.steps_done;
         e.carry = s.carry;
         e.cum = s.cum;
         e.out = s.out;

@@ -395,6 +395,8 @@ pub struct DiskMotion {
     /// Flowable share A_f of the disk's area: the void spreads over the material that
     /// exists, so vertical moves are divided by it (1 for a disk in open ground).
     pub area_frac: f64,
+    /// Mean fragment size d̄ of the disk, m.
+    pub d: f64,
 }
 
 /// One drawpoint's IMZ.
@@ -709,6 +711,7 @@ impl Imz {
             m.r = self.geom.radius[i];
             m.area_frac = st.area_frac.max(1.0 / 96.0);
             m.w = p.shear_band_factor * d;
+            m.d = d;
             m.n1 = if st.n1 > 0.0 { st.n1 } else { m.n1 };
             if m.jump <= 0.0 {
                 m.jump = st.jump().max(p.min_jump);

@@ -140,6 +140,12 @@ pub struct Markers {
     pub work: Vec<f64>,
     /// Horizontal distance rilled on the free surface so far, m (`engine::rilling`).
     pub rill: Vec<f64>,
+    /// Primary fragment size d0, m (`engine::fragmentation`).
+    pub frag0: Vec<f64>,
+    /// Attrited mass fraction W (`engine::fragmentation`).
+    pub attrited: Vec<f64>,
+    /// Accumulated percolation distance, m (`engine::fines`).
+    pub percolated: Vec<f64>,
 }
 
 /// Drawn markers: the moving columns plus who drew them and when.
@@ -177,6 +183,9 @@ impl Markers {
         self.strain.push(0.0);
         self.work.push(0.0);
         self.rill.push(0.0);
+        self.frag0.push(frag);
+        self.attrited.push(0.0);
+        self.percolated.push(0.0);
     }
 
     /// Moves row `k` out (swap-remove) and appends it to `to`.
@@ -191,6 +200,9 @@ impl Markers {
         to.strain.push(self.strain.swap_remove(k));
         to.work.push(self.work.swap_remove(k));
         to.rill.push(self.rill.swap_remove(k));
+        to.frag0.push(self.frag0.swap_remove(k));
+        to.attrited.push(self.attrited.swap_remove(k));
+        to.percolated.push(self.percolated.swap_remove(k));
     }
 }
 
@@ -219,6 +231,12 @@ pub struct Step {
     pub work: f64,
     /// Drawpoint that drew it, or u32::MAX.
     pub drawn_by: u32,
+    /// Σ Γ d̄ over the disks that shear it (Γ-weighted d̄ = dbar / strain), m.
+    pub dbar: f64,
+    /// The IMZ that moved it most, or u32::MAX.
+    pub host: u32,
+    /// Percolation distance (downward, ≥ 0) included in `dz`, m (`engine::fines`).
+    pub perc: f64,
 }
 
 /// Vertical displacement Δz_m of a marker at radius `a` in a disk of radius `r`, shear
@@ -339,6 +357,7 @@ impl MotionField<'_> {
                 let gamma = dz.abs() / m.r.min(m.w).max(1e-12);
                 st.strain += gamma;
                 st.work += gamma * m.sigma_n;
+                st.dbar += gamma * m.d;
             }
             if dz.abs() > strongest {
                 strongest = dz.abs();
@@ -353,6 +372,7 @@ impl MotionField<'_> {
                 st.dz += share * tz;
             }
         }
+        st.host = st.drawn_by;
         if st.drawn_by != u32::MAX && p[2] + st.dz >= self.geoms[st.drawn_by as usize].z0 {
             st.drawn_by = u32::MAX;
         }
@@ -362,10 +382,22 @@ impl MotionField<'_> {
 
 /// Moves every marker once (parallel, pure per marker, so the result does not depend on
 /// the number of threads). Returns the rows drawn, in row order, with their drawpoint.
-pub fn move_markers(mk: &mut Markers, field: &MotionField) -> Vec<(usize, u32)> {
+/// `extra` may add to each marker's step before it is applied (fines percolation); it must
+/// be pure per marker too.
+pub fn move_markers(
+    mk: &mut Markers,
+    field: &MotionField,
+    extra: Option<&(dyn Fn(&Markers, usize, &mut Step) + Sync)>,
+) -> Vec<(usize, u32)> {
     let steps: Vec<Step> = (0..mk.len())
         .into_par_iter()
-        .map(|k| field.step([mk.x[k], mk.y[k], mk.z[k]]))
+        .map(|k| {
+            let mut s = field.step([mk.x[k], mk.y[k], mk.z[k]]);
+            if let Some(f) = extra {
+                f(mk, k, &mut s);
+            }
+            s
+        })
         .collect();
     (
         mk.x.par_iter_mut(),
@@ -383,6 +415,12 @@ pub fn move_markers(mk: &mut Markers, field: &MotionField) -> Vec<(usize, u32)> 
             *g += s.strain;
             *w += s.work;
         });
+    if extra.is_some() {
+        mk.percolated
+            .par_iter_mut()
+            .zip(&steps)
+            .for_each(|(l, s)| *l += s.perc);
+    }
     steps
         .iter()
         .enumerate()

@@ -4,6 +4,8 @@
 //! - [`markers`]: the marker lattice and marker motion (summary §3.3), superposition of
 //!   overlapping IMZs (summary §4.2).
 //! - [`resolution`]: the automatic choice of h, marker spacing and draw increment.
+//! - [`fragmentation`]: primary fragment sizes and secondary fragmentation (summary §6.3).
+//! - [`fines`]: fines migration by percolation (summary §7.3).
 //!
 //! # One period
 //! Each period's schedule is drawn in steps that interleave the drawpoints (concurrent
@@ -12,7 +14,9 @@
 //! 2. grow the drawing IMZs in parallel (each passes its void up in cycles);
 //! 3. engulf the lattice sites the grown disks now cover (stagnant → moving markers);
 //! 4. one parallel pass over the moving markers, summing the motion of every drawing IMZ
-//!    that contains each (superposition); markers leaving the lowest disk are drawn.
+//!    that contains each (superposition), plus fines percolation when it is on; markers
+//!    leaving the lowest disk are drawn. With secondary fragmentation on, the markers'
+//!    attrited fractions and sizes are then updated from their accumulated strain and work.
 //!
 //! # Mass balance
 //! Drawn markers are discrete, so the marker mass drawn in a period differs from the
@@ -23,6 +27,8 @@
 //! run the credited tonnes equal the schedule up to the final carry, which is reported.
 
 pub mod checkpoint;
+pub mod fines;
+pub mod fragmentation;
 pub mod imz;
 pub mod markers;
 pub mod resolution;
@@ -32,6 +38,7 @@ pub mod rilling;
 use rayon::prelude::*;
 
 use crate::model::{Scenario, Scene};
+use fragmentation::SizeDist;
 use imz::{DiskMotion, Ground, Imz, ImzGeom, ImzGrid, ImzParams, Mobilised};
 use markers::{DrawnMarkers, Lattice, Markers, MotionField};
 pub use result::*;
@@ -73,6 +80,14 @@ struct Tally {
     waste: f64,
     rilled: f64,
     rill_dist: f64,
+    /// Size distribution and mass of each marker drawn.
+    sizes: Vec<(SizeDist, f64)>,
+    /// Σ fines mass × origin elevation.
+    fines_z: f64,
+    /// Fines mass that is waste.
+    fines_waste: f64,
+    /// Σ mass × accumulated percolation distance.
+    percolated: f64,
 }
 
 /// The engine's state between steps. Create with [`Engine::new`], drive with
@@ -88,8 +103,6 @@ pub struct Engine<'a> {
     engulfed: Vec<bool>,
     /// In-situ mass engulfed per block, t (for the block fill and the air gap).
     engulfed_mass: Vec<f64>,
-    /// Draw steps since the start of the run (rilling frequency).
-    steps: u64,
     /// One IMZ per drawpoint.
     pub imzs: Vec<Imz>,
     /// Moving markers.
@@ -104,6 +117,8 @@ pub struct Engine<'a> {
     fines_frac: Vec<f64>,
     extent: ([f64; 2], [f64; 2]),
     out: RunOutput,
+    /// Marker updates done so far (keys the per-marker random streams).
+    steps_done: u64,
 }
 
 impl<'a> Engine<'a> {
@@ -153,6 +168,14 @@ impl<'a> Engine<'a> {
         };
         out.extraction.grades = vec![Vec::new(); bm.grades.len()];
         out.extraction.lithology = vec![Vec::new(); bm.lithology_names.len()];
+        if scenario.mechanisms.fragmentation {
+            let weak = bm.tensile.iter().filter(|t| !(**t > 0.0)).count();
+            if weak > 0 {
+                out.warnings.push(format!(
+                    "secondary fragmentation is on but {weak} blocks have no tensile strength or UCS; they do not break"
+                ));
+            }
+        }
         Ok(Engine {
             scene,
             scenario,
@@ -162,7 +185,6 @@ impl<'a> Engine<'a> {
             marker_mass: lattice.marker_masses(bm),
             engulfed: vec![false; lattice.len()],
             engulfed_mass: vec![0.0; bm.len()],
-            steps: 0,
             imzs,
             markers: Markers::default(),
             drawn: DrawnMarkers::default(),
@@ -177,7 +199,13 @@ impl<'a> Engine<'a> {
                 [max[0] - bm.origin[0], max[1] - bm.origin[1]],
             ),
             out,
+            steps_done: 0,
         })
+    }
+
+    /// Whether markers carry individual sizes (a size mechanism is on).
+    fn sized(&self) -> bool {
+        self.scenario.mechanisms.fragmentation || self.scenario.mechanisms.fines
     }
 
     /// Runs every period; `progress(done, total)` is called after each period.
@@ -255,8 +283,7 @@ impl<'a> Engine<'a> {
         if max_t > 0.0 && !drawing.is_empty() {
             for _ in 0..steps {
                 self.step(period, row, steps, &drawing);
-                self.steps += 1;
-                if rill && every > 0 && self.steps % every == 0 {
+                if rill && every > 0 && self.steps_done % every == 0 {
                     self.rill(period);
                 }
             }
@@ -310,7 +337,21 @@ impl<'a> Engine<'a> {
             motion: &motion,
             grid: &grid,
         };
-        let mut drawn = markers::move_markers(&mut self.markers, &field);
+        self.steps_done += 1;
+        let perc = fines::Percolation {
+            blocks: bm,
+            field: &field,
+            period,
+            seed: self.scenario.seed,
+            step: self.steps_done,
+        };
+        let hook = |mk: &Markers, k: usize, st: &mut markers::Step| perc.apply(mk, k, st);
+        let extra: Option<&(dyn Fn(&Markers, usize, &mut markers::Step) + Sync)> =
+            self.scenario.mechanisms.fines.then_some(&hook);
+        let mut drawn = markers::move_markers(&mut self.markers, &field, extra);
+        if self.scenario.mechanisms.fragmentation {
+            fragmentation::attrite(&mut self.markers, bm, &self.scenario.fragmentation);
+        }
         drawn.sort_unstable_by(|a, b| b.0.cmp(&a.0));
         for (k, d) in drawn {
             self.credit(k, d as usize);
@@ -322,6 +363,14 @@ impl<'a> Engine<'a> {
 
     /// One rilling step on the free surface (`rilling::rill`).
     fn rill(&mut self, period: i64) {
+        let (bm, seed, sized) = (&self.scene.blocks, self.scenario.seed, self.sized());
+        let size = move |b: usize, id: u64| {
+            if sized {
+                fragmentation::primary_size(bm, b, seed, id)
+            } else {
+                bm.frag[b]
+            }
+        };
         let mut st = rilling::RillState {
             lattice: &self.lattice,
             blocks: &self.scene.blocks,
@@ -330,6 +379,7 @@ impl<'a> Engine<'a> {
             engulfed_mass: &mut self.engulfed_mass,
             marker_mass: &self.marker_mass,
             markers: &mut self.markers,
+            size: &size,
         };
         rilling::rill(&mut st);
     }
@@ -412,6 +462,19 @@ impl<'a> Engine<'a> {
         let bm = &self.scene.blocks;
         let b = self.markers.block[k] as usize;
         let m = self.markers.mass[k];
+        let mk = &self.markers;
+        // The marker's size distribution and fines share: its own (primary size, attrited
+        // fraction) when markers are sized, else its block's primary distribution.
+        let (dist, fines) = if self.sized() {
+            let dist = SizeDist::Attrited {
+                d0: mk.frag0[k],
+                w: mk.attrited[k],
+                m: self.scenario.fragmentation.product_exponent,
+            };
+            (dist, dist.passing(self.scenario.outputs.fines_cutoff))
+        } else {
+            (SizeDist::of_block(bm, b), self.fines_frac[b])
+        };
         let t = &mut self.tally[d];
         t.mass += m;
         t.count += 1;
@@ -421,9 +484,13 @@ impl<'a> Engine<'a> {
         t.lith[bm.lithology[b] as usize] += m;
         t.origin_z += m * self.lattice.pos(self.markers.id[k] as usize)[2];
         t.frag += m * self.markers.frag[k];
-        t.fines += m * self.fines_frac[b];
+        t.fines += m * fines;
+        t.fines_z += m * fines * self.lattice.pos(mk.id[k] as usize)[2];
+        t.sizes.push((dist, m));
+        t.percolated += m * mk.percolated[k];
         if self.waste[b] {
             t.waste += m;
+            t.fines_waste += m * fines;
         }
         let rilled = self.markers.rill[k];
         if rilled > 0.0 {
@@ -436,6 +503,8 @@ impl<'a> Engine<'a> {
     fn engulf(&mut self, period: i64, drawing: &[usize]) {
         let lat = self.lattice;
         let bm = &self.scene.blocks;
+        let sized = self.sized();
+        let seed = self.scenario.seed;
         let engulfed = &self.engulfed;
         let mut sites: Vec<usize> = drawing
             .par_iter()
@@ -502,8 +571,13 @@ impl<'a> Engine<'a> {
             }
             self.engulfed[id] = true;
             self.engulfed_mass[b] += self.marker_mass[b];
+            let d0 = if sized {
+                fragmentation::primary_size(bm, b, seed, id as u64)
+            } else {
+                bm.frag[b]
+            };
             self.markers
-                .push(id as u64, p, self.marker_mass[b], b as u32, bm.frag[b]);
+                .push(id as u64, p, self.marker_mass[b], b as u32, d0);
         }
     }
 
@@ -543,7 +617,7 @@ impl<'a> Engine<'a> {
         let row = scene.schedule.period(p);
         let ex = &mut self.out.extraction;
         for d in 0..row.len() {
-            let t = std::mem::replace(
+            let mut t = std::mem::replace(
                 &mut self.tally[d],
                 Tally {
                     grade: vec![0.0; scene.blocks.grades.len()],
@@ -580,6 +654,14 @@ impl<'a> Engine<'a> {
                 .push(self.cum[d] / self.hod_density_area[d].max(1e-12));
             ex.frag_size.push(per(t.frag));
             ex.fines_share.push(per(t.fines));
+            let [p20, p50, p80] = fragmentation::p20_p50_p80(&mut t.sizes);
+            ex.frag_p20.push(p20);
+            ex.frag_p50.push(p50);
+            ex.frag_p80.push(p80);
+            let per_fines = |x: f64| if t.fines > 0.0 { x / t.fines } else { f64::NAN };
+            ex.fines_origin_z.push(per_fines(t.fines_z));
+            ex.fines_waste_share.push(per_fines(t.fines_waste));
+            ex.percolation.push(per(t.percolated));
             ex.air_gap.push(self.imzs[d].air);
             ex.rilled_share.push(per(t.rilled));
             ex.rill_distance.push(if t.rilled > 0.0 {
@@ -666,6 +748,9 @@ impl<'a> Engine<'a> {
             s.frag_size.push(m.frag[k]);
             s.shear_strain.push(m.strain[k]);
             s.shear_work.push(m.work[k]);
+            s.primary_frag_size.push(m.frag0[k]);
+            s.attrited.push(m.attrited[k]);
+            s.percolated.push(m.percolated[k]);
             s.drawpoint.push(if is_drawn {
                 self.drawn.drawpoint[k]
             } else {

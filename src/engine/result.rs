@@ -54,6 +54,18 @@ pub struct Extraction {
     pub frag_size: Vec<f64>,
     /// Fines share.
     pub fines_share: Vec<f64>,
+    /// Size passed by 20 % of the drawn mass, m.
+    pub frag_p20: Vec<f64>,
+    /// Size passed by 50 % of the drawn mass, m.
+    pub frag_p50: Vec<f64>,
+    /// Size passed by 80 % of the drawn mass, m.
+    pub frag_p80: Vec<f64>,
+    /// Fines-mass-weighted mean origin elevation of the drawn fines, m.
+    pub fines_origin_z: Vec<f64>,
+    /// Waste share of the drawn fines.
+    pub fines_waste_share: Vec<f64>,
+    /// Mass-weighted mean distance the drawn material percolated on its way, m.
+    pub percolation: Vec<f64>,
     /// Air gap volume above the drawpoint so far.
     pub air_gap: Vec<f64>,
     /// Mass share of the drawn material that rilled on the free surface.
@@ -144,6 +156,12 @@ pub struct MarkerSnapshot {
     pub shear_strain: Vec<f64>,
     /// Accumulated shear work Γσ_n, kPa.
     pub shear_work: Vec<f64>,
+    /// Primary fragment size d0, m.
+    pub primary_frag_size: Vec<f64>,
+    /// Attrited mass fraction W.
+    pub attrited: Vec<f64>,
+    /// Accumulated percolation distance, m.
+    pub percolated: Vec<f64>,
     /// Drawpoint index that drew it (u32::MAX if not drawn).
     pub drawpoint: Vec<u32>,
     /// Period drawn (-1 if not drawn).

@@ -136,6 +136,8 @@ pub struct RillState<'a> {
     pub marker_mass: &'a [f64],
     /// Moving markers.
     pub markers: &'a mut Markers,
+    /// Primary fragment size of a newly mobilised site: (block, site id) → d0, m.
+    pub size: &'a dyn Fn(usize, u64) -> f64,
 }
 
 /// tan(12° + φ/2): the slope of repose of material with friction angle φ (degrees).
@@ -285,8 +287,9 @@ pub fn rill(st: &mut RillState) -> RillStats {
             let Some(b) = bm.locate(p) else { continue };
             st.engulfed[id] = true;
             st.engulfed_mass[b] += st.marker_mass[b];
+            let d0 = (st.size)(b, id as u64);
             st.markers
-                .push(id as u64, p, st.marker_mass[b], b as u32, bm.frag[b]);
+                .push(id as u64, p, st.marker_mass[b], b as u32, d0);
             stats.mobilised += 1;
             in_situ[c] = in_situ_top(&lat, bm, st.period, st.engulfed, c % nx, c / nx, lat.n[2]);
             st.markers.len() - 1

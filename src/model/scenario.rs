@@ -22,6 +22,8 @@ pub struct Scenario {
     pub mechanisms: Mechanisms,
     /// Cave advance, air gap and rilling settings.
     pub rilling: Rilling,
+    /// Constants of secondary fragmentation (used when `mechanisms.fragmentation` is on).
+    pub fragmentation: FragmentationParams,
     /// What counts as waste for the dilution share.
     pub dilution: Dilution,
     /// What to write.
@@ -120,6 +122,35 @@ impl Default for Rilling {
         Rilling {
             every_steps: 0,
             air_fill: 0.25,
+        }
+    }
+}
+
+/// Constants of Bridgwater's attrition law W = K_N (σ_N Γ^φ / σ_t)^β and of the
+/// attrition-product size distribution (summary §6.3; see `engine::fragmentation`).
+/// Bridgwater et al.'s published constants per particle shape were not at hand: every
+/// default here is an ASSUMPTION, to be replaced by calibration.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct FragmentationParams {
+    /// K_N (default 1.0, assumption).
+    pub k_n: f64,
+    /// β, exponent of the stress:strength ratio (default 1.0, assumption).
+    pub beta: f64,
+    /// φ, exponent of the shear strain (default 0.5, assumption).
+    pub phi: f64,
+    /// m in the attrition-product distribution (x/d0)^m, m = 3 − D (default 0.5: fractal
+    /// dimension D = 2.5, assumption).
+    pub product_exponent: f64,
+}
+
+impl Default for FragmentationParams {
+    fn default() -> Self {
+        FragmentationParams {
+            k_n: 1.0,
+            beta: 1.0,
+            phi: 0.5,
+            product_exponent: 0.5,
         }
     }
 }
@@ -290,6 +321,16 @@ impl Scenario {
                 self.rilling.air_fill
             ));
         }
+        let f = &self.fragmentation;
+        if !(f.k_n.is_finite() && f.k_n >= 0.0) {
+            return Err(format!(
+                "fragmentation.k_n must be a number >= 0, got {}",
+                f.k_n
+            ));
+        }
+        pos("fragmentation.beta", Some(f.beta))?;
+        pos("fragmentation.phi", Some(f.phi))?;
+        pos("fragmentation.product_exponent", Some(f.product_exponent))?;
         Ok(())
     }
 }

@@ -17,7 +17,7 @@ pub fn run(scene: &Scene, sc: &Scenario) -> RunOutput {
 
 /// A scenario at an explicit resolution: disk thickness `h`, marker spacing `s`, draw
 /// increment `inc` (t per drawpoint per step).
-fn scenario(h: f64, s: f64, inc: f64) -> Scenario {
+pub fn scenario(h: f64, s: f64, inc: f64) -> Scenario {
     let mut sc = Scenario::default();
     sc.resolution.layer_thickness = Some(h);
     sc.resolution.marker_spacing = Some(s);
@@ -333,7 +333,7 @@ fn bits(v: &[f64]) -> Vec<u64> {
 }
 
 /// Compares two runs field by field, f64 bitwise.
-fn assert_identical(a: &RunOutput, b: &RunOutput, what: &str) {
+pub fn assert_identical(a: &RunOutput, b: &RunOutput, what: &str) {
     macro_rules! same {
         ($t:ident . $f:ident) => {
             assert_eq!(

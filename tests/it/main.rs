@@ -3,5 +3,6 @@
 mod cli;
 mod engine;
 mod io;
+mod mechanisms;
 mod output;
 mod rilling;

@@ -224,6 +224,12 @@ fn fake_run(scene: &Scene) -> RunOutput {
         hod: v(10.0),
         frag_size: v(0.2),
         fines_share: v(0.001),
+        frag_p20: v(0.05),
+        frag_p50: v(0.15),
+        frag_p80: v(0.3),
+        fines_origin_z: v(2450.0),
+        fines_waste_share: v(0.2),
+        percolation: v(0.02),
         air_gap: v(0.0),
         rilled_share: v(0.05),
         rill_distance: v(3.0),
@@ -267,6 +273,9 @@ fn fake_run(scene: &Scene) -> RunOutput {
         frag_size: vec![0.23, 0.22, 0.04],
         shear_strain: vec![0.5, 0.1, 0.0],
         shear_work: vec![100.0, 10.0, 0.0],
+        primary_frag_size: vec![0.25, 0.22, 0.04],
+        attrited: vec![0.1, 0.0, 0.0],
+        percolated: vec![0.0, 1.5, 0.0],
         drawpoint: vec![1, u32::MAX, u32::MAX],
         drawn_period: vec![1, -1, -1],
     };
@@ -401,6 +410,12 @@ fn extraction_round_trip() {
     assert_eq!(f64_col(&batch, "hod"), t.hod);
     assert_eq!(f64_col(&batch, "frag_size"), t.frag_size);
     assert_eq!(f64_col(&batch, "fines_share"), t.fines_share);
+    assert_eq!(f64_col(&batch, "frag_p20"), t.frag_p20);
+    assert_eq!(f64_col(&batch, "frag_p50"), t.frag_p50);
+    assert_eq!(f64_col(&batch, "frag_p80"), t.frag_p80);
+    assert_eq!(f64_col(&batch, "fines_origin_z"), t.fines_origin_z);
+    assert_eq!(f64_col(&batch, "fines_waste_share"), t.fines_waste_share);
+    assert_eq!(f64_col(&batch, "percolation"), t.percolation);
     assert_eq!(f64_col(&batch, "air_gap"), t.air_gap);
     assert_eq!(str_col(&batch, "status"), t.status);
     assert_eq!(f64_col(&batch, "mo"), t.grades[0]);
@@ -456,6 +471,9 @@ fn marker_partitions_round_trip() {
         assert_eq!(f64_col(&batch, "x"), s.x);
         assert_eq!(f64_col(&batch, "origin_z"), s.origin_z);
         assert_eq!(f64_col(&batch, "shear_work"), s.shear_work);
+        assert_eq!(f64_col(&batch, "primary_frag_size"), s.primary_frag_size);
+        assert_eq!(f64_col(&batch, "attrited"), s.attrited);
+        assert_eq!(f64_col(&batch, "percolated"), s.percolated);
         assert_eq!(str_col(&batch, "state"), ["drawn", "moving", "in_situ"]);
         assert_eq!(
             str_col(&batch, "drawpoint"),
