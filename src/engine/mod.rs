@@ -4,6 +4,8 @@
 //! - [`markers`]: the marker lattice and marker motion (summary §3.3), superposition of
 //!   overlapping IMZs (summary §4.2).
 //! - [`resolution`]: the automatic choice of h, marker spacing and draw increment.
+//! - [`stress`]: the stress logic and interactive-draw flags (summary §5.3), at chosen
+//!   periods when `mechanisms.stress` is on.
 //!
 //! # One period
 //! Each period's schedule is drawn in steps that interleave the drawpoints (concurrent
@@ -26,6 +28,7 @@ pub mod imz;
 pub mod markers;
 pub mod resolution;
 pub mod result;
+pub mod stress;
 
 use rayon::prelude::*;
 
