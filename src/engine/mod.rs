@@ -491,6 +491,16 @@ impl<'a> Engine<'a> {
             let snap = self.snapshot(period);
             self.out.snapshots.push(snap);
         }
+        let stress = &self.scenario.stress;
+        if self.scenario.mechanisms.stress
+            && (stress.periods.contains(&period) || (stress.periods.is_empty() && last))
+        {
+            let geoms: Vec<ImzGeom> = self.imzs.iter().map(|m| m.geom.clone()).collect();
+            let params = stress::StressParams::new(stress, self.resolution.layer_thickness);
+            let mut field = stress::compute(&scene.blocks, period, &geoms, &params, stress);
+            field.drawn_tonnes = self.cum.clone();
+            self.out.stress.push(field);
+        }
     }
 
     /// Marker states now: every moving and drawn marker, sorted by id.

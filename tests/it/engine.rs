@@ -17,7 +17,7 @@ pub fn run(scene: &Scene, sc: &Scenario) -> RunOutput {
 
 /// A scenario at an explicit resolution: disk thickness `h`, marker spacing `s`, draw
 /// increment `inc` (t per drawpoint per step).
-fn scenario(h: f64, s: f64, inc: f64) -> Scenario {
+pub fn scenario(h: f64, s: f64, inc: f64) -> Scenario {
     let mut sc = Scenario::default();
     sc.resolution.layer_thickness = Some(h);
     sc.resolution.marker_spacing = Some(s);
