@@ -414,7 +414,7 @@ pub const STRESS_LEVELS: TableSpec = TableSpec {
         f("pillars", I64, "-", "Pillars of stagnant ground between neighbouring bins of one group", true, &[]),
         f("pillar_ratio", F64, "-", "Largest, over the pillars, of the least stress:strength ratio along a pillar (null without pillars)", false, &[]),
         f("stagnant_ratio", F64, "-", "Mean stress:strength ratio of the stagnant ground inside the elastic zones (null without IMZs)", false, &[]),
-        f("arched", F64, "kPa", "Stress spread evenly over the ground outside the draw area to keep the slice average (arching)", true, &[]),
+        f("arched", F64, "kPa", "Force arched onto the stagnant ground (outside the draw area first) to keep the slice average, over the slice area; negative when taken back", true, &[]),
         f("flagged", I64, "-", "1 where a pillar yields along its whole length (potential stress-driven flow: interactive draw), else 0", true, &[]),
     ],
     extra: None,

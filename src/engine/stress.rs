@@ -78,9 +78,11 @@
 //!   caved rock is cohesionless or nearly so: its unconfined strength is zero and it is the
 //!   confinement, lost next to an IMZ, that decides whether the stagnant ground yields;
 //! - the stagnant ground carries at most its yield stress; the excess above yield **arches
-//!   outside the draw area** (summary §5.2): together with any other imbalance it is spread
-//!   evenly over the ground outside every elastic zone (`Zone::Far`); if there is none, over
-//!   the elastic zones; if there is none, over the plastic zones. The cave slice's average
+//!   outside the draw area** (summary §5.2): together with any other imbalance it goes
+//!   first to the ground outside every elastic zone (`Zone::Far`), then to the elastic zones,
+//!   each cell taking a share of its headroom to yield, so arching never pushes receiving
+//!   ground past yield while other ground has room (see [`balance`]); only what no ground can
+//!   take is spread evenly, and that ground then exceeds yield. The cave slice's average
 //!   vertical stress is therefore exactly the Janssen average σ̄ (summary §5.3: "the average
 //!   cave-scale vertical stresses … remain constant in each cave slice").
 //!
@@ -508,8 +510,8 @@ pub struct StressLevels {
     /// Mean stress:strength ratio of the stagnant ground inside the elastic zones (NaN
     /// without IMZs).
     pub stagnant_ratio: Vec<f64>,
-    /// Stress added evenly to the receiving ground to keep the slice average (arching
-    /// outside the draw area), kPa.
+    /// Force arched onto the stagnant ground to keep the slice average (outside the draw
+    /// area first), over the slice area, kPa; negative when taken back.
     pub arched: Vec<f64>,
     /// Potential stress-driven flow of stagnant ground (a pillar yields).
     pub flagged: Vec<bool>,
@@ -606,9 +608,17 @@ struct Level {
     /// Group of each bin.
     group: Vec<usize>,
     groups: usize,
-    /// Zone receiving the arched / balancing stress, and the stress it receives.
-    receiver: Option<Zone>,
+    /// Force balance (see [`balance`]): share of its headroom (or, when the field carries
+    /// too much, of its stress) each zone receives, by `Zone as usize`; whether the shares
+    /// apply to headroom; stress added evenly to all stagnant ground once every zone is at
+    /// yield; and the arched force over the slice area (reported), kPa.
+    fill: [f64; 5],
+    on_headroom: bool,
+    uniform: f64,
     arched: f64,
+    /// While the balance is worked out: `finish` returns the stress before the fill, with
+    /// the headroom to yield in `ratio`.
+    raw: bool,
 }
 
 /// The stress grid.
@@ -717,9 +727,18 @@ impl Level {
             (Zone::Far, p0)
         };
         let mut carried = demand.min(yield_v);
-        if self.receiver == Some(zone) {
-            demand += self.arched;
-            carried += self.arched;
+        let headroom = (yield_v - carried).max(0.0);
+        let base = PointStress {
+            zone,
+            sigma_v: carried,
+            sigma_h: sh,
+            ratio: headroom,
+        };
+        let share = self.fill[zone as usize] * if self.on_headroom { headroom } else { carried };
+        demand += share + self.uniform;
+        carried += share + self.uniform;
+        if self.raw {
+            return base;
         }
         PointStress {
             zone,
@@ -1122,24 +1141,26 @@ fn solve_level(l: &mut Level, grid: &Grid, params: &StressParams) -> LevelRow {
             .map(|c| l.cave.flow[c].then(|| l.finish(&accs[c], params)))
             .collect()
     };
-    // Force balance: what the field carries against σ̄ A, the difference spread over the
-    // receiving ground (outside the draw area first).
-    l.receiver = None;
-    l.arched = 0.0;
+    // Force balance: what the field carries against σ̄ A, the difference arched onto the
+    // stagnant ground (outside the draw area first).
+    l.fill = [0.0; 5];
+    l.uniform = 0.0;
+    l.on_headroom = true;
+    l.raw = true;
     let raw = field(l);
+    l.raw = false;
     let mut carried = 0.0;
-    let mut zone_area = [0.0; 5];
+    let (mut room, mut load, mut stagnant) = ([0.0; 5], [0.0; 5], 0.0);
     for p in raw.iter().flatten() {
         carried += p.sigma_v * cell_area;
-        zone_area[p.zone as usize] += cell_area;
+        if p.zone != Zone::Imz {
+            // `finish` without the fill reports the headroom in `ratio` (see `raw_point`).
+            room[p.zone as usize] += p.ratio * cell_area;
+            load[p.zone as usize] += p.sigma_v * cell_area;
+            stagnant += cell_area;
+        }
     }
-    if let Some(z) = [Zone::Far, Zone::Elastic, Zone::Plastic]
-        .into_iter()
-        .find(|&z| zone_area[z as usize] > 0.0)
-    {
-        l.receiver = Some(z);
-        l.arched = (l.sigma * l.cave.area - carried) / zone_area[z as usize];
-    }
+    balance(l, l.sigma * l.cave.area - carried, room, load, stagnant);
     let balanced = field(l);
     let (mut total, mut ratio_sum, mut ratio_n) = (0.0, 0.0, 0usize);
     for p in balanced.iter().flatten() {
@@ -1172,6 +1193,33 @@ fn solve_level(l: &mut Level, grid: &Grid, params: &StressParams) -> LevelRow {
     }
     row.flagged = row.pillar_ratio >= 1.0 - YIELD_TOL;
     row
+}
+
+/// Arches the force `missing` (kN; negative when the field carries too much) onto the
+/// stagnant ground of level `l`: zone by zone, outside the draw area first (Far, then
+/// Elastic, then Plastic), each cell taking a share of its headroom to yield (`room`, kN
+/// summed over the zone) so that no receiving ground is pushed past yield while another has
+/// room; what no zone can take is spread evenly over all stagnant ground (`stagnant`, m²),
+/// which then exceeds yield. An excess is taken back from the zones in the same order, in
+/// proportion to what each cell carries (`load`).
+fn balance(l: &mut Level, missing: f64, room: [f64; 5], load: [f64; 5], stagnant: f64) {
+    l.arched = missing / l.cave.area;
+    let order = [Zone::Far, Zone::Elastic, Zone::Plastic];
+    let mut left = missing.abs();
+    l.on_headroom = missing > 0.0;
+    let pool = if l.on_headroom { room } else { load };
+    for z in order {
+        let cap = pool[z as usize];
+        if left <= 0.0 || !(cap > 0.0) {
+            continue;
+        }
+        let take = left.min(cap);
+        l.fill[z as usize] = take / cap * missing.signum();
+        left -= take;
+    }
+    if left > 0.0 && stagnant > 0.0 {
+        l.uniform = left / stagnant * missing.signum();
+    }
 }
 
 /// Least stress:strength ratio along the pillar between bins a and b (None when the segment

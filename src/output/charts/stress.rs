@@ -250,7 +250,15 @@ impl Render for StressPlot<'_> {
                 FLAG_COLOUR.filled(),
             ))?;
         }
+        // Outlines are clamped to the model extent (a mine-scale IMZ may be wider).
+        let clamp = |(u, v): (f64, f64)| {
+            (
+                u.clamp(c.u_range.0, c.u_range.1),
+                v.clamp(c.v_range.0, c.v_range.1),
+            )
+        };
         for run in c.outlines.iter().flat_map(|o| finite_runs(o)) {
+            let run: Vec<(f64, f64)> = run.into_iter().map(clamp).collect();
             root.draw(&PathElement::new(f.path(&run), IMZ_COLOUR.stroke_width(3)))?;
         }
         let label_style = text(12.0, HPos::Center, VPos::Top);
