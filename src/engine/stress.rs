@@ -1145,7 +1145,6 @@ fn solve_level(l: &mut Level, grid: &Grid, params: &StressParams) -> LevelRow {
     // stagnant ground (outside the draw area first).
     l.fill = [0.0; 5];
     l.uniform = 0.0;
-    l.on_headroom = true;
     l.raw = true;
     let raw = field(l);
     l.raw = false;
@@ -1203,6 +1202,8 @@ fn solve_level(l: &mut Level, grid: &Grid, params: &StressParams) -> LevelRow {
 /// which then exceeds yield. An excess is taken back from the zones in the same order, in
 /// proportion to what each cell carries (`load`).
 fn balance(l: &mut Level, missing: f64, room: [f64; 5], load: [f64; 5], stagnant: f64) {
+    l.fill = [0.0; 5];
+    l.uniform = 0.0;
     l.arched = missing / l.cave.area;
     let order = [Zone::Far, Zone::Elastic, Zone::Plastic];
     let mut left = missing.abs();
@@ -1560,6 +1561,36 @@ mod tests {
         assert!(rel(p, 2.0 * (2.0 * PI - 2.0 * 0.5f64.acos())) < 2e-3, "{p}");
         let (a, p) = union_area_perimeter(&[(3.0, 4.0, 2.0)]);
         assert_eq!((a, p), (4.0 * PI, 4.0 * PI));
+    }
+
+    /// Arching fills the ground outside the draw area first, by headroom, then the elastic
+    /// zones; only what no zone can take is spread evenly; an excess is taken back from the
+    /// far ground first. Every number is a sum of a few exact terms: 1e-12.
+    #[test]
+    fn balance_fills_far_ground_first_and_by_headroom() {
+        let mut l = Level {
+            cave: CaveSlice {
+                area: 10.0,
+                ..Default::default()
+            },
+            ..Default::default()
+        };
+        let (f, e) = (Zone::Far as usize, Zone::Elastic as usize);
+        let mut room = [0.0; 5];
+        room[f] = 40.0;
+        room[e] = 100.0;
+        let load = [0.0, 0.0, 0.0, 50.0, 200.0];
+        balance(&mut l, 30.0, room, load, 8.0);
+        assert!(l.on_headroom && rel(l.fill[f], 0.75) < 1e-12 && l.fill[e] == 0.0);
+        assert!(l.uniform == 0.0 && rel(l.arched, 3.0) < 1e-12);
+        balance(&mut l, 90.0, room, load, 8.0);
+        assert!(rel(l.fill[f], 1.0) < 1e-12 && rel(l.fill[e], 0.5) < 1e-12);
+        let mut l2 = l.clone();
+        balance(&mut l2, 180.0, room, load, 8.0);
+        assert!(rel(l2.fill[e], 1.0) < 1e-12 && rel(l2.uniform, 40.0 / 8.0) < 1e-12);
+        let mut l3 = l.clone();
+        balance(&mut l3, -100.0, room, load, 8.0);
+        assert!(!l3.on_headroom && rel(l3.fill[f], -0.5) < 1e-12 && l3.fill[e] == 0.0);
     }
 
     fn geom(x: f64, y: f64, radii: &[f64]) -> ImzGeom {

@@ -168,8 +168,22 @@ pub fn write_stress_charts(
                     None => name,
                 }
             };
+            let plan_flag = o == Orientation::Plan
+                && f.levels
+                    .z
+                    .iter()
+                    .zip(&f.levels.flagged)
+                    .any(|(&z, &fl)| fl && (s.at - z).abs() <= 0.5 * f.cell);
             let chart = StressChart {
-                title: format!("Vertical stress (kPa), {what}, end of period {}", f.period),
+                title: format!(
+                    "Vertical stress (kPa), {what}, end of period {}{}",
+                    f.period,
+                    if plan_flag {
+                        " (level flagged: potential interactive draw)"
+                    } else {
+                        ""
+                    }
+                ),
                 u_label: u_axis.to_string(),
                 v_label: v_axis.to_string(),
                 u_range,
