@@ -368,13 +368,23 @@ pub fn union_area_perimeter(disks: &[(f64, f64, f64)]) -> (f64, f64) {
     let dt = 2.0 * PI / ARC_SAMPLES as f64;
     let (mut area, mut perim) = (0.0, 0.0);
     for (m, &(cx, cy, r)) in disks.iter().enumerate() {
+        // Only disks within r + their radius can cover a point of this circle (the margin
+        // keeps the filter exact under rounding); at mine scale a cluster has hundreds.
+        let near: Vec<(f64, f64, f64)> = disks
+            .iter()
+            .enumerate()
+            .filter(|&(n, &(ox, oy, or))| {
+                n != m && (ox - cx).powi(2) + (oy - cy).powi(2) <= (1.0 + 1e-9) * (r + or).powi(2)
+            })
+            .map(|(_, &d)| d)
+            .collect();
         let (cx, cy) = (cx - x0, cy - y0);
         for s in 0..ARC_SAMPLES {
             let t = (s as f64 + 0.5) * dt;
             let (px, py) = (cx + r * t.cos(), cy + r * t.sin());
-            let covered = disks.iter().enumerate().any(|(n, &(ox, oy, or))| {
-                n != m && (px - (ox - x0)).powi(2) + (py - (oy - y0)).powi(2) < or * or
-            });
+            let covered = near
+                .iter()
+                .any(|&(ox, oy, or)| (px - (ox - x0)).powi(2) + (py - (oy - y0)).powi(2) < or * or);
             if !covered {
                 perim += r * dt;
                 area += 0.5 * (r * r + r * (cx * t.cos() + cy * t.sin())) * dt;
@@ -750,8 +760,23 @@ impl Level {
 
     /// Stress at (x, y) from every bin.
     fn point(&self, x: f64, y: f64, params: &StressParams) -> PointStress {
+        self.point_among(0..self.bins.len(), x, y, params)
+    }
+
+    /// Stress at (x, y) from the bins `which` (in increasing order; bins that cannot reach
+    /// the point may be left out: they add nothing).
+    fn point_among(
+        &self,
+        which: impl Iterator<Item = usize>,
+        x: f64,
+        y: f64,
+        params: &StressParams,
+    ) -> PointStress {
         let mut acc = Acc::default();
-        for b in 0..self.bins.len() {
+        for b in which {
+            if !self.bins[b].reaches(x, y, x, y) {
+                continue;
+            }
             self.add(&mut acc, b, x, y);
             if acc.imz.is_some() {
                 break;
@@ -1055,6 +1080,18 @@ fn bins_at(bm: &BlockModel, disks: &[Disk], z: f64) -> Vec<Bin> {
         .collect()
 }
 
+impl Bin {
+    /// Whether the box [x0, x1] × [y0, y1] meets this bin's elastic zone's bounding box
+    /// (outside it a point has r ≥ R_el and the bin adds nothing).
+    fn reaches(&self, x0: f64, y0: f64, x1: f64, y1: f64) -> bool {
+        let r = self.shaft.r_el - self.shaft.a;
+        !(x1 < self.bbox[0] - r
+            || x0 > self.bbox[1] + r
+            || y1 < self.bbox[2] - r
+            || y0 > self.bbox[3] + r)
+    }
+}
+
 /// Per-level summary from [`solve_level`].
 #[derive(Debug, Clone, Copy)]
 struct LevelRow {
@@ -1233,10 +1270,14 @@ fn pillar_ratio(l: &Level, a: usize, b: usize, params: &StressParams) -> Option<
     let (p, q) = (&l.disks[m], &l.disks[n]);
     let dist = ((p.x - q.x).powi(2) + (p.y - q.y).powi(2)).sqrt();
     let (t0, t1) = (p.r / dist, 1.0 - q.r / dist);
+    let near: Vec<usize> = (0..l.bins.len())
+        .filter(|&k| l.bins[k].reaches(p.x.min(q.x), p.y.min(q.y), p.x.max(q.x), p.y.max(q.y)))
+        .collect();
     let mut least = f64::INFINITY;
     for s in 0..PILLAR_SAMPLES {
         let t = t0 + (t1 - t0) * (s as f64 + 0.5) / PILLAR_SAMPLES as f64;
-        let st = l.point(p.x + t * (q.x - p.x), p.y + t * (q.y - p.y), params);
+        let (x, y) = (p.x + t * (q.x - p.x), p.y + t * (q.y - p.y));
+        let st = l.point_among(near.iter().copied(), x, y, params);
         if st.zone == Zone::Imz {
             return None;
         }
