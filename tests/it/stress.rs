@@ -254,3 +254,44 @@ fn stress_switch_adds_fields_and_changes_nothing_else() {
     // Drawn tonnes for the chart labels: cumulative, so period 3 has more.
     assert!(on.stress[1].drawn_tonnes[0] > on.stress[0].drawn_tonnes[0]);
 }
+
+/// The `[stress]` section: defaults as documented in the README, `--set` for every key, and
+/// typos and out-of-range values rejected.
+#[test]
+fn stress_settings_parse_with_documented_defaults() {
+    use caveflow::model::Scenario;
+    let base = std::path::Path::new(".");
+    let d = Scenario::from_toml("", "t", &[], base).unwrap().stress;
+    assert_eq!(d, StressSettings::default());
+    assert!(d.periods.is_empty() && d.cell.is_none() && d.cohesion_kpa == 0.0);
+    assert_eq!((d.cave_k, d.bin_k), (LateralRatio::Jaky, 1.0));
+    assert!(d.wall_friction_deg.is_none() && d.ns_x.is_none() && d.plan_z.is_none());
+    let sets: Vec<String> = [
+        "stress.periods=[2, 5]",
+        "stress.cell=0.5",
+        "stress.cohesion_kpa=3",
+        "stress.cave_k=rankine",
+        "stress.plan_z=[1.0, 2.0]",
+    ]
+    .map(String::from)
+    .to_vec();
+    let s = Scenario::from_sets(&sets, base).unwrap().stress;
+    assert_eq!(s.periods, vec![2, 5]);
+    assert_eq!(
+        (s.cell, s.cohesion_kpa, s.cave_k),
+        (Some(0.5), 3.0, LateralRatio::Rankine)
+    );
+    assert_eq!(s.plan_z, Some(vec![1.0, 2.0]));
+    for bad in [
+        "stress.cohesion=1",
+        "stress.cave_k=janssen",
+        "stress.cohesion_kpa=-1",
+        "stress.cell=0",
+        "stress.wall_friction_deg=95",
+    ] {
+        assert!(
+            Scenario::from_sets(&[bad.to_string()], base).is_err(),
+            "{bad}"
+        );
+    }
+}
