@@ -398,6 +398,47 @@ pub const MARKERS: TableSpec = TableSpec {
     extra: None,
 };
 
+/// Stress on sections (summary §5.3, Figs 24–25): one row per grid point per section.
+pub const STRESS_SECTIONS: TableSpec = TableSpec {
+    name: "stress_sections",
+    description: "Stress logic (mechanisms.stress): vertical and horizontal stress on the vertical and horizontal sections at the end of a chosen period, one row per grid point.",
+    fields: &[
+        f("period", I64, "-", "Period at whose end stress was computed", true, &[]),
+        f("section", Str, "-", "Section name: ns_x=<Easting>, ew_y=<Northing> or plan_z=<elevation>", true, &[]),
+        f("orientation", Str, "-", "ns (vertical, along Northing) | ew (vertical, along Easting) | plan (horizontal)", true, &[]),
+        f("x", F64, "m", "Grid point Easting", true, &[]),
+        f("y", F64, "m", "Grid point Northing", true, &[]),
+        f("z", F64, "m", "Grid point elevation (slice mid-height)", true, &[]),
+        f("sigma_v", F64, "kPa", "Vertical stress carried (null in uncaved ground)", false, &[]),
+        f("sigma_h", F64, "kPa", "Horizontal (radial) stress (null in uncaved ground)", false, &[]),
+        f("ratio", F64, "-", "Stress:strength ratio of stagnant ground: vertical stress demand over the Mohr-Coulomb strength at the local horizontal stress (1 = yield; null inside IMZs and in uncaved ground)", false, &[]),
+        f("zone", Str, "-", "imz | plastic | elastic | far (stagnant, outside every elastic zone) | uncaved", true, &[]),
+    ],
+    extra: None,
+};
+
+/// Stress per level and the interactive-draw flags (summary §5.3).
+pub const STRESS_LEVELS: TableSpec = TableSpec {
+    name: "stress_levels",
+    description: "Stress logic (mechanisms.stress): one row per level (cave slice) at the end of a chosen period, with the flag for potential stress-driven flow of stagnant ground between IMZs (interactive draw).",
+    fields: &[
+        f("period", I64, "-", "Period at whose end stress was computed", true, &[]),
+        f("z", F64, "m", "Level elevation (slice mid-height)", true, &[]),
+        f("cave_area", F64, "m2", "Area of flowable (caved) ground in the slice", true, &[]),
+        f("cave_perimeter", F64, "m", "Perimeter of the cave slice", true, &[]),
+        f("sigma_v_cave", F64, "kPa", "Cave-average vertical stress by Janssen's differential slices (null without caved ground)", false, &[]),
+        f("sigma_v_mean", F64, "kPa", "Area-weighted mean of the redistributed vertical stress over the cave slice (equals sigma_v_cave)", false, &[]),
+        f("bins", I64, "-", "Bin slices: isolated IMZs or clusters of overlapping IMZs", true, &[]),
+        f("groups", I64, "-", "Group slices: bins whose elastic zones overlap", true, &[]),
+        f("pillars", I64, "-", "Pillars of stagnant ground between neighbouring bins of one group", true, &[]),
+        f("pillar_ratio", F64, "-", "Largest, over the pillars, of the least stress:strength ratio along a pillar (null without pillars)", false, &[]),
+        f("stagnant_ratio", F64, "-", "Mean stress:strength ratio of the stagnant ground inside the elastic zones (null without IMZs)", false, &[]),
+        f("arched", F64, "kPa", "Force arched onto the stagnant ground (outside the draw area first) to keep the slice average, over the slice area; negative when taken back", true, &[]),
+        f("flagged", I64, "-", "1 where a pillar yields along its whole length (potential stress-driven flow: interactive draw), else 0", true, &[]),
+    ],
+    extra: None,
+};
+
 /// Run manifest (JSON, described with the same field conventions).
 pub const MANIFEST: TableSpec = TableSpec {
     name: "manifest",
@@ -482,6 +523,8 @@ pub const ALL: &[TableSpec] = &[
     MARKERS,
     AIR_GAP,
     SURFACE,
+    STRESS_SECTIONS,
+    STRESS_LEVELS,
     MANIFEST,
 ];
 

@@ -6,6 +6,8 @@
 //! - [`resolution`]: the automatic choice of h, marker spacing and draw increment.
 //! - [`fragmentation`]: primary fragment sizes and secondary fragmentation (summary §6.3).
 //! - [`fines`]: fines migration by percolation (summary §7.3).
+//! - [`stress`]: the stress logic and interactive-draw flags (summary §5.3), at chosen
+//!   periods when `mechanisms.stress` is on.
 //!
 //! # One period
 //! Each period's schedule is drawn in steps that interleave the drawpoints (concurrent
@@ -34,6 +36,7 @@ pub mod markers;
 pub mod resolution;
 pub mod result;
 pub mod rilling;
+pub mod stress;
 
 use rayon::prelude::*;
 
@@ -707,6 +710,16 @@ impl<'a> Engine<'a> {
         if wanted.contains(&period) || (wanted.is_empty() && last) {
             let snap = self.snapshot(period);
             self.out.snapshots.push(snap);
+        }
+        let stress = &self.scenario.stress;
+        if self.scenario.mechanisms.stress
+            && (stress.periods.contains(&period) || (stress.periods.is_empty() && last))
+        {
+            let geoms: Vec<ImzGeom> = self.imzs.iter().map(|m| m.geom.clone()).collect();
+            let params = stress::StressParams::new(stress, self.resolution.layer_thickness);
+            let mut field = stress::compute(&scene.blocks, period, &geoms, &params, stress);
+            field.drawn_tonnes = self.cum.clone();
+            self.out.stress.push(field);
         }
     }
 

@@ -245,6 +245,8 @@ pub struct RunOutput {
     pub balance: MassBalance,
     /// Resolution used.
     pub resolution: ResolvedResolution,
+    /// Stress fields at the chosen periods (empty unless `mechanisms.stress` is on).
+    pub stress: Vec<super::stress::StressField>,
 }
 
 /// Row statuses of the extraction report.

@@ -28,6 +28,8 @@ pub struct Scenario {
     pub dilution: Dilution,
     /// What to write.
     pub outputs: Outputs,
+    /// Stress logic settings (used when `mechanisms.stress` is on).
+    pub stress: StressSettings,
     /// Seed of the run's random number generator.
     pub seed: u64,
 }
@@ -208,6 +210,63 @@ impl Default for Outputs {
     }
 }
 
+/// Lateral stress ratio K (horizontal over vertical stress) of the cave-scale Janssen slices.
+#[derive(Debug, Clone, Copy, Serialize, Deserialize, PartialEq, Eq, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum LateralRatio {
+    /// At rest, K0 = 1 − sin φ (Jaky): the stagnant caved column barely strains sideways.
+    #[default]
+    Jaky,
+    /// Active, Ka = (1 − sin φ)/(1 + sin φ) (Rankine): the lower bound, walls yielding away.
+    Rankine,
+}
+
+/// Stress logic (summary §5.3; see `engine::stress` for the physics and the choices).
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct StressSettings {
+    /// Periods at whose end stress is computed (empty: the last period only).
+    pub periods: Vec<i64>,
+    /// Stress grid cell and level spacing, m. Default: the IMZ disk thickness h, so each
+    /// slice is one disk (summary §5.3: slices are analogous to the disks).
+    pub cell: Option<f64>,
+    /// Cohesion c of the caved rock, kPa. Default 0: caved rock (and the gravel of the
+    /// physical models) is a cohesionless frictional assembly.
+    pub cohesion_kpa: f64,
+    /// K of the cave-scale Janssen slices. Default `jaky`.
+    pub cave_k: LateralRatio,
+    /// K inside IMZs (bin slices). Default 1: vertical and radial stresses inside an IMZ
+    /// are about equal (summary §5.2).
+    pub bin_k: f64,
+    /// Friction angle between caved rock and the cave walls, degrees. Default (None): the
+    /// caved rock's own φ (rough walls: slip happens inside the caved rock).
+    pub wall_friction_deg: Option<f64>,
+    /// Eastings of the N-S vertical sections, m. Default (None): one through the drawpoint
+    /// axis nearest the centre of the drawpoints.
+    pub ns_x: Option<Vec<f64>>,
+    /// Northings of the E-W vertical sections, m. Default (None): as `ns_x`, across.
+    pub ew_y: Option<Vec<f64>>,
+    /// Elevations of the horizontal sections, m. Default (None): one at the mean mid-height
+    /// of the IMZs.
+    pub plan_z: Option<Vec<f64>>,
+}
+
+impl Default for StressSettings {
+    fn default() -> Self {
+        StressSettings {
+            periods: Vec::new(),
+            cell: None,
+            cohesion_kpa: 0.0,
+            cave_k: LateralRatio::Jaky,
+            bin_k: 1.0,
+            wall_friction_deg: None,
+            ns_x: None,
+            ew_y: None,
+            plan_z: None,
+        }
+    }
+}
+
 /// A problem with the scenario file or a `--set`.
 #[derive(Debug, thiserror::Error)]
 pub enum ScenarioError {
@@ -331,6 +390,21 @@ impl Scenario {
         pos("fragmentation.beta", Some(f.beta))?;
         pos("fragmentation.phi", Some(f.phi))?;
         pos("fragmentation.product_exponent", Some(f.product_exponent))?;
+        pos("stress.cell", self.stress.cell)?;
+        pos("stress.bin_k", Some(self.stress.bin_k))?;
+        if !(self.stress.cohesion_kpa.is_finite() && self.stress.cohesion_kpa >= 0.0) {
+            return Err(format!(
+                "stress.cohesion_kpa must be a number >= 0, got {}",
+                self.stress.cohesion_kpa
+            ));
+        }
+        if let Some(w) = self.stress.wall_friction_deg {
+            if !(w > 0.0 && w < 90.0) {
+                return Err(format!(
+                    "stress.wall_friction_deg must be in (0, 90), got {w}"
+                ));
+            }
+        }
         Ok(())
     }
 }

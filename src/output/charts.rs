@@ -40,6 +40,8 @@ use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 use plotters::style::{FontStyle, FontTransform};
 
+pub mod stress;
+
 /// Largest side of a chart image, px (sections and grade grids both fit inside it).
 pub const MAX_SIDE: u32 = 1200;
 

@@ -105,6 +105,11 @@ pub fn write_run_charts(
             )?);
         }
     }
+    written.extend(super::stress::write_stress_charts(
+        &out,
+        scene,
+        &run.stress,
+    )?);
     Ok(written)
 }
 

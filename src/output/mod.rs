@@ -8,6 +8,7 @@
 //! - [`inputs`]: a [`Scene`](crate::model::Scene) written back as input tables and a scenario
 //!   file (used by `caveflow demo`).
 //! - `charts`: PNG and SVG charts.
+//! - [`stress`](self::stress): the stress logic's tables and charts.
 //!
 //! # Why every file is written atomically
 //!
@@ -24,6 +25,7 @@ pub mod inputs;
 pub mod manifest;
 pub mod parquet;
 pub mod run;
+pub mod stress;
 
 pub use self::manifest::Manifest;
 pub use self::parquet::{write_atomic, write_parquet, AtomicFile};

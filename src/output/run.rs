@@ -5,6 +5,7 @@
 //! <dir>/imz.parquet
 //! <dir>/drawn.parquet
 //! <dir>/markers/period=<N>/part-0.parquet   (Hive-partitioned; `period` is also a column)
+//! <dir>/stress_levels.parquet, <dir>/stress_sections.parquet   (only with mechanisms.stress)
 //! <dir>/manifest.json                       (written last)
 //! ```
 //!
@@ -25,18 +26,18 @@ use crate::engine::result::{
 use crate::model::Scene;
 use crate::schema::{TableSpec, AIR_GAP, DRAWN, EXTRACTION, IMZ, MARKERS, SURFACE};
 
-fn f64s(v: Vec<f64>) -> ArrayRef {
+pub(crate) fn f64s(v: Vec<f64>) -> ArrayRef {
     Arc::new(Float64Array::from(v))
 }
 
 /// Float column where NaN (no marker drawn, so no value) is written as null.
-fn f64s_or_null(v: Vec<f64>) -> ArrayRef {
+pub(crate) fn f64s_or_null(v: Vec<f64>) -> ArrayRef {
     Arc::new(Float64Array::from_iter(
         v.into_iter().map(|x| (!x.is_nan()).then_some(x)),
     ))
 }
 
-fn i64s(v: Vec<i64>) -> ArrayRef {
+pub(crate) fn i64s(v: Vec<i64>) -> ArrayRef {
     Arc::new(Int64Array::from(v))
 }
 
@@ -51,7 +52,7 @@ fn names(index: &[u32], names: &[String]) -> ArrayRef {
 
 /// Writes named columns as one table: the schema is `spec`'s fields under these names (in
 /// this order) with `extra` names for the variable columns that follow them.
-fn write_table(
+pub(crate) fn write_table(
     path: &Path,
     spec: &TableSpec,
     fixed: Vec<(&str, ArrayRef)>,
@@ -236,6 +237,10 @@ pub fn write_run(
     let markers = dir.join("markers");
     for snapshot in run.snapshots {
         written.push(write_markers(&markers, scene, snapshot)?);
+    }
+
+    if !run.stress.is_empty() {
+        written.extend(super::stress::write_stress(dir, run.stress)?);
     }
 
     let path = dir.join("manifest.json");

@@ -6,3 +6,4 @@ mod io;
 mod mechanisms;
 mod output;
 mod rilling;
+mod stress;

@@ -22,7 +22,7 @@ use caveflow::output::{write_atomic, write_parquet, write_run, AtomicFile, Input
 use caveflow::schema::{self, TableSpec};
 use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
 
-fn read_parquet(path: &Path) -> RecordBatch {
+pub fn read_parquet(path: &Path) -> RecordBatch {
     let file = fs::File::open(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
     let builder = ParquetRecordBatchReaderBuilder::try_new(file).unwrap();
     // The file's own Arrow schema, table-level metadata included.
@@ -311,6 +311,7 @@ fn fake_run(scene: &Scene) -> RunOutput {
             marker_spacing: 1.9,
             draw_increment: 250.0,
         },
+        stress: Vec::new(),
     }
 }
 
