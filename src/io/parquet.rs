@@ -157,6 +157,10 @@ fn push_array(
         return true;
     }
     let dt = array.data_type();
+    if dt.is_nested() {
+        // Lists and structs print as text (`[1, 2]`), which is never a cell value.
+        return false;
+    }
     let target = if dt.is_integer() {
         DataType::Int64
     } else if dt.is_floating() {
