@@ -4,6 +4,7 @@
 //! - [`markers`]: the marker lattice and marker motion (summary §3.3), superposition of
 //!   overlapping IMZs (summary §4.2).
 //! - [`resolution`]: the automatic choice of h, marker spacing and draw increment.
+//! - [`stability`]: where the method is valid, degraded (warned) or refused.
 //!
 //! # One period
 //! Each period's schedule is drawn in steps that interleave the drawpoints (concurrent
@@ -26,6 +27,7 @@ pub mod imz;
 pub mod markers;
 pub mod resolution;
 pub mod result;
+pub mod stability;
 
 use rayon::prelude::*;
 
@@ -50,6 +52,9 @@ pub enum EngineError {
         /// Limit.
         limit: usize,
     },
+    /// The scene lies where REBOP's method fails ([`stability`]).
+    #[error("{0}")]
+    Refused(String),
 }
 
 /// Largest lattice the engine accepts (one byte of state per site).
@@ -140,6 +145,7 @@ impl<'a> Engine<'a> {
             resolution: res,
             ..Default::default()
         };
+        out.warnings = stability::assess(scene, scenario, &res).map_err(EngineError::Refused)?;
         out.extraction.grades = vec![Vec::new(); bm.grades.len()];
         out.extraction.lithology = vec![Vec::new(); bm.lithology_names.len()];
         Ok(Engine {
