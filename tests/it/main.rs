@@ -4,4 +4,5 @@ mod cli;
 mod engine;
 mod io;
 mod output;
+mod props;
 mod stability;
