@@ -291,6 +291,28 @@ fn bad_input_exits_1_with_file_row_column_rule_and_writes_nothing() {
             out_dir.display()
         );
     }
+    // A Parquet file that panics inside the parquet crate (found by the fuzz harness): the
+    // panic is caught without a word on stderr, and reported.
+    let dir = scene_dir("none", b"");
+    let crash = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/data/io/fuzz/negative_column_start.parquet");
+    let out = caveflow()
+        .arg("validate")
+        .arg("--blocks")
+        .arg(dir.path().join("blocks.csv"))
+        .arg("--drawpoints")
+        .arg(dir.path().join("drawpoints.csv"))
+        .arg("--schedule")
+        .arg(&crash)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("negative_column_start.parquet: [unreadable] the Parquet reader failed")
+            && !err.contains("panicked"),
+        "{err}"
+    );
 }
 
 /// A scene where REBOP fails is refused by `validate` and `run` (exit 1, the rule and the
