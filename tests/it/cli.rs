@@ -371,3 +371,36 @@ fn stability_refusal_and_warning_end_to_end() {
         "{manifest}"
     );
 }
+
+/// What is tolerated is tolerated end to end: a BOM, quoted and padded numbers, tabs,
+/// semicolons, a tab-delimited wide schedule, CRLF line ends.
+#[test]
+fn tolerated_variants_validate() {
+    use crate::io::BLOCKS;
+    let bom = format!("\u{feff}{BLOCKS}");
+    let quoted = BLOCKS.replacen("2.7,0.3", "\" 2.7 \",\"0.3\"", 1);
+    let tabs = BLOCKS.replace(',', "\t");
+    let semi = BLOCKS.replace(',', ";");
+    let crlf = BLOCKS.replace('\n', "\r\n");
+    for (file, text) in [
+        ("blocks.csv", bom.as_str()),
+        ("blocks.csv", quoted.as_str()),
+        ("blocks.csv", tabs.as_str()),
+        ("blocks.csv", semi.as_str()),
+        ("blocks.csv", crlf.as_str()),
+        (
+            "schedule.csv",
+            "DPName\tJan-09\tFeb-09\nDP1\t100\t50\nDP2\t100\t\n",
+        ),
+    ] {
+        let dir = scene_dir(file, text.as_bytes());
+        let out = caveflow()
+            .arg("validate")
+            .arg(dir.path().join("scenario.toml"))
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{file}: {text:?}\n{err}");
+        assert!(String::from_utf8_lossy(&out.stdout).contains("ok: 8 blocks"));
+    }
+}
