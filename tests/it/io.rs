@@ -1703,3 +1703,37 @@ fn random_bytes_through_every_reader() {
         })
         .unwrap();
 }
+
+#[test]
+fn overlapping_openings() {
+    // DP2 moved to 1 m from DP1: two 4 m openings would intersect.
+    let p = edited(|f| {
+        set(&mut f.drawpoints, 2, "x", "6");
+        set(&mut f.drawpoints, 2, "y", "5");
+    });
+    let pr = expect(
+        &p,
+        "drawpoints.csv",
+        Some(2),
+        Some("x"),
+        "overlapping-openings",
+    );
+    assert!(
+        pr.message
+            .contains("drawpoint `DP2` (4 m wide) overlaps drawpoint `DP1` (4 m wide) at row 1")
+            && pr.message.contains("1.000 m apart, less than the 4.000 m"),
+        "{pr}"
+    );
+    assert_eq!(p.with_rule("overlapping-openings").count(), 1, "{p}");
+    // 4 m apart (touching) is allowed, and so is one directly above another level's.
+    for (x, z) in [("9", "0"), ("5", "10")] {
+        let (_d, r) = load({
+            let mut f = Files::default();
+            set(&mut f.drawpoints, 2, "x", x);
+            set(&mut f.drawpoints, 2, "y", "5");
+            set(&mut f.drawpoints, 2, "z", z);
+            f
+        });
+        r.unwrap_or_else(|p| panic!("{p}"));
+    }
+}

@@ -7,7 +7,7 @@
 //! A small box of 50 mm blocks (0.3–0.6 m in plan, 0.5–0.8 m high) of Castro-like material
 //! whose every block draws its own density (2.0–3.0 t/m³), porosity n0 (0.25–0.40), jump
 //! (0.05–0.20), friction angle (32–48°) and fragment size (4–12 mm); one to three drawpoints
-//! anywhere on the floor, openings 80–160 mm; an upper slab that caves at period 1 or
+//! anywhere on the floor whose openings do not intersect, openings 80–160 mm; an upper slab that caves at period 1 or
 //! later; two to four periods of 0–8 kg per drawpoint; h of 25 or 50 mm, markers at h/2 or h
 //! (never coarser than the blocks), increments of 0.5–2 opening disks. Every scene is
 //! inside the `engine::stability` valid region by construction (d̄/w 0.025–0.15, h/d̄
@@ -54,6 +54,15 @@ struct Spec {
     increment: f64,
 }
 
+/// A drawpoint (u, v, w) of the unit square placed on the floor of an nx × ny block box,
+/// at least half an opening from the walls.
+fn place(&(u, v, w): &(f64, f64, f64), nx: usize, ny: usize) -> (f64, f64, f64) {
+    let (ex, ey) = (0.05 * nx as f64, 0.05 * ny as f64);
+    let x = -0.5 * ex + 0.5 * w + u * (ex - w);
+    let y = -0.5 * ey + 0.5 * w + v * (ey - w);
+    (x, y, w)
+}
+
 fn spec() -> impl Strategy<Value = Spec> {
     (
         (6usize..=12, 6usize..=12, 10usize..=16),
@@ -73,19 +82,22 @@ fn spec() -> impl Strategy<Value = Spec> {
         prop::collection::vec(prop_oneof![Just(0.0), 0.0f64..0.008], 12),
         (prop::bool::ANY, prop::bool::ANY, 0.5f64..2.0),
     )
+        // Openings that intersect are refused by the loader (`overlapping-openings`:
+        // drawpoints are cut through pillars); the first long run found that the engine then
+        // credits the shared material to one of them.
+        .prop_filter("openings overlap", |t| {
+            let dps: Vec<_> = t.1.iter().map(|d| place(d, t.0 .0, t.0 .1)).collect();
+            dps.iter().enumerate().all(|(i, a)| {
+                dps[i + 1..]
+                    .iter()
+                    .all(|b| (a.0 - b.0).hypot(a.1 - b.1) >= 0.5 * (a.2 + b.2))
+            })
+        })
         .prop_map(
             |(dims, dps, blocks, slab, periods, tonnes, (thin, fine_markers, increment))| {
                 let (nx, ny, nz) = dims;
                 // Drawpoints inside the floor, at least half an opening from the walls.
-                let drawpoints = dps
-                    .iter()
-                    .map(|&(u, v, w)| {
-                        let (ex, ey) = (0.05 * nx as f64, 0.05 * ny as f64);
-                        let x = -0.5 * ex + 0.5 * w + u * (ex - w);
-                        let y = -0.5 * ey + 0.5 * w + v * (ey - w);
-                        (x, y, w)
-                    })
-                    .collect();
+                let drawpoints = dps.iter().map(|d| place(d, nx, ny)).collect();
                 Spec {
                     plan: (nx, ny),
                     height: nz,
