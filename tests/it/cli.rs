@@ -291,6 +291,41 @@ fn bad_input_exits_1_with_file_row_column_rule_and_writes_nothing() {
             out_dir.display()
         );
     }
+    // A Parquet drawpoints table whose width column holds text.
+    let dir = scene_dir("none", b"");
+    let dp = dir.path().join("drawpoints.parquet");
+    let f = |v: Vec<f64>| std::sync::Arc::new(arrow::array::Float64Array::from(v)) as _;
+    crate::io::write_parquet(
+        &dp,
+        vec![
+            (
+                "name",
+                std::sync::Arc::new(arrow::array::StringArray::from(vec!["DP1", "DP2"])) as _,
+            ),
+            ("x", f(vec![5.0, 15.0])),
+            ("y", f(vec![5.0, 15.0])),
+            ("z", f(vec![0.0, 0.0])),
+            (
+                "width",
+                std::sync::Arc::new(arrow::array::StringArray::from(vec!["4", "4 m"])) as _,
+            ),
+        ],
+    );
+    let out = caveflow()
+        .arg("validate")
+        .arg(dir.path().join("scenario.toml"))
+        .arg("--drawpoints")
+        .arg(&dp)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains(
+            "drawpoints.parquet: row 2, column width: [mistyped] expected a number, found `4 m`"
+        ),
+        "{err}"
+    );
     // A Parquet file that panics inside the parquet crate (found by the fuzz harness): the
     // panic is caught without a word on stderr, and reported.
     let dir = scene_dir("none", b"");

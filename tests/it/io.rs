@@ -438,7 +438,7 @@ fn parquet_reads_and_casts() {
     assert_eq!(l.inputs[0].rows, 8);
 }
 
-fn write_parquet(path: &Path, cols: Vec<(&str, ArrayRef)>) {
+pub fn write_parquet(path: &Path, cols: Vec<(&str, ArrayRef)>) {
     let fields: Vec<Field> = cols
         .iter()
         .map(|(n, a)| Field::new(*n, a.data_type().clone(), true))
