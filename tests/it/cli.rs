@@ -439,3 +439,50 @@ fn tolerated_variants_validate() {
         assert!(String::from_utf8_lossy(&out.stdout).contains("ok: 8 blocks"));
     }
 }
+
+/// The three inputs that crash MassFlow 9.7 (issue 9): a point outside the model is
+/// refused with its row; a tab-delimited schedule and a skipped period run.
+#[test]
+fn massflow_crash_cases() {
+    use crate::io::DRAWPOINTS_CSV;
+    let outside = DRAWPOINTS_CSV.replace("DP2,15,15,0,4", "DP2,500,15,0,4");
+    let dir = scene_dir("drawpoints.csv", outside.as_bytes());
+    let out = caveflow()
+        .arg("validate")
+        .arg(dir.path().join("scenario.toml"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains(
+            "drawpoints.csv: row 2, column x: [outside-model] drawpoint `DP2` at (500, 15)"
+        ),
+        "{err}"
+    );
+    // Periods 1 and 3, no period 2; the schedule tab-delimited.
+    let dir = scene_dir(
+        "periods.csv",
+        b"period,name,days\n1,Jan-09,31\n3,Mar-09,31\n",
+    );
+    std::fs::write(
+        dir.path().join("schedule.csv"),
+        "period\tdrawpoint\ttonnes\n1\tDP1\t100\n3\tDP1\t50\n3\tDP2\t80\n",
+    )
+    .unwrap();
+    let out_dir = dir.path().join("out");
+    let out = caveflow()
+        .arg("run")
+        .arg(dir.path().join("scenario.toml"))
+        .arg("--out")
+        .arg(&out_dir)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    let manifest: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out_dir.join("manifest.json")).unwrap()).unwrap();
+    let b = &manifest["mass_balance"];
+    assert!(b.is_object(), "{manifest}");
+    assert_eq!(b["scheduled_tonnes"], 230.0, "{manifest}");
+}
