@@ -8,9 +8,10 @@ use std::time::Instant;
 use anyhow::{bail, Context, Result};
 use clap::{Args, Parser, Subcommand, ValueEnum};
 
-use crate::engine::Engine;
+use crate::engine::{resolution, stability, Engine, EngineError};
 use crate::model::demo::{self, DemoScale};
 use crate::model::load::{load_scene, InputFile, LoadedScene};
+use crate::model::scenario::ScenarioError;
 use crate::model::Scenario;
 use crate::output::{self, Manifest};
 use crate::schema;
@@ -130,11 +131,23 @@ pub struct DemoArgs {
 /// Parses the command line and runs it.
 pub fn main() -> Result<ExitCode> {
     let cli = Cli::parse();
-    match cli.command {
+    let r = match cli.command {
         Command::Run(a) => run(a),
         Command::Validate(a) => validate(a),
         Command::Schema(a) => schema_cmd(a),
         Command::Demo(a) => demo_cmd(a),
+    };
+    match r {
+        // A bad scenario is invalid input, like a bad table: exit 1 (the problem names the
+        // file, line, column and rule). So is a scene where the method fails (stability).
+        Err(e)
+            if e.downcast_ref::<ScenarioError>().is_some()
+                || matches!(e.downcast_ref(), Some(EngineError::Refused(_))) =>
+        {
+            eprintln!("error: {e:#}");
+            Ok(ExitCode::from(1))
+        }
+        r => r,
     }
 }
 
@@ -197,6 +210,13 @@ fn validate(a: InputArgs) -> Result<ExitCode> {
         eprintln!("warning: {w}");
     }
     let s = &l.scene;
+    match stability::assess(s, &sc, &resolution::resolve(s, &sc)) {
+        Ok(warnings) => warnings.iter().for_each(|w| eprintln!("warning: {w}")),
+        Err(refused) => {
+            eprintln!("error: {refused}");
+            return Ok(ExitCode::from(1));
+        }
+    }
     println!(
         "ok: {} blocks ({} x {} x {} m), {} drawpoints, {} periods, {:.0} t scheduled",
         s.blocks.len(),

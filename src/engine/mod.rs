@@ -8,6 +8,7 @@
 //! - [`fines`]: fines migration by percolation (summary §7.3).
 //! - [`stress`]: the stress logic and interactive-draw flags (summary §5.3), at chosen
 //!   periods when `mechanisms.stress` is on.
+//! - [`stability`]: where the method is valid, degraded (warned) or refused.
 //!
 //! # One period
 //! Each period's schedule is drawn in steps that interleave the drawpoints (concurrent
@@ -36,6 +37,7 @@ pub mod markers;
 pub mod resolution;
 pub mod result;
 pub mod rilling;
+pub mod stability;
 pub mod stress;
 
 use rayon::prelude::*;
@@ -65,6 +67,9 @@ pub enum EngineError {
     /// A checkpoint that cannot be resumed.
     #[error("cannot resume from the checkpoint: {0}")]
     Checkpoint(String),
+    /// The scene lies where REBOP's method fails ([`stability`]).
+    #[error("{0}")]
+    Refused(String),
 }
 
 /// Largest lattice the engine accepts (one byte of state per site).
@@ -169,6 +174,7 @@ impl<'a> Engine<'a> {
             resolution: res,
             ..Default::default()
         };
+        out.warnings = stability::assess(scene, scenario, &res).map_err(EngineError::Refused)?;
         out.extraction.grades = vec![Vec::new(); bm.grades.len()];
         out.extraction.lithology = vec![Vec::new(); bm.lithology_names.len()];
         if scenario.mechanisms.fragmentation {

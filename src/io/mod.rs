@@ -18,7 +18,8 @@ pub(crate) use problem::Collector;
 pub use problem::{Problem, Problems, KEEP_PER_RULE};
 pub(crate) use schedule::read_schedule_into;
 pub use schedule::{
-    parse_period_header, read_schedule, ScheduleEntry, ScheduleForm, ScheduleTable,
+    parse_period_header, read_schedule, read_schedule_bytes, ScheduleEntry, ScheduleForm,
+    ScheduleTable,
 };
 pub(crate) use table::read_table_into;
-pub use table::{read_table, sha256_hex, Column, ExtraColumn, Table};
+pub use table::{read_table, read_table_bytes, sha256_hex, Column, ExtraColumn, Table};

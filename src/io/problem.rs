@@ -151,6 +151,14 @@ impl Collector {
         self.total == 0
     }
 
+    /// `Ok(value)` when nothing was recorded and there is a value, else every problem.
+    pub(crate) fn into_result<T>(self, value: Option<T>) -> Result<T, Problems> {
+        match value {
+            Some(v) if self.is_empty() => Ok(v),
+            _ => Err(self.finish()),
+        }
+    }
+
     /// The problems, with one summary per (file, column, rule) whose count passed the cap.
     pub(crate) fn finish(self) -> Problems {
         let mut out = self.kept;

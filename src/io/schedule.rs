@@ -99,10 +99,8 @@ impl ScheduleTable {
 /// Reads a schedule in the long or the wide (MassFlow) form; see the module docs.
 pub fn read_schedule(path: &Path) -> Result<ScheduleTable, Problems> {
     let mut problems = Collector::default();
-    match read_schedule_into(path, &mut problems) {
-        Some(t) if problems.is_empty() => Ok(t),
-        _ => Err(problems.finish()),
-    }
+    let t = read_schedule_into(path, &mut problems);
+    problems.into_result(t)
 }
 
 /// [`read_schedule`] that records problems into `problems` and still returns the entries
@@ -113,8 +111,20 @@ pub(crate) fn read_schedule_into(path: &Path, problems: &mut Collector) -> Optio
     }
     let file = file_name(path);
     let bytes = read_bytes(path, &file, problems)?;
+    schedule_text(&file, bytes, problems)
+}
+
+/// [`read_schedule`] of delimited text already in memory (`file` names it in messages).
+pub fn read_schedule_bytes(file: &str, bytes: Vec<u8>) -> Result<ScheduleTable, Problems> {
+    let mut problems = Collector::default();
+    let t = schedule_text(file, bytes, &mut problems);
+    problems.into_result(t)
+}
+
+/// A text schedule in either form.
+fn schedule_text(file: &str, bytes: Vec<u8>, problems: &mut Collector) -> Option<ScheduleTable> {
     let sha256 = sha256_hex(&bytes);
-    let text = Text::new(&file, bytes);
+    let text = Text::new(file, bytes);
     let headers = text.headers(problems)?;
     let field = |name: &str| {
         SCHEDULE

@@ -182,10 +182,17 @@ pub(crate) fn names_field(header: &str, field: &FieldSpec) -> bool {
 /// ignored with a warning. Every problem in the file is reported, not just the first.
 pub fn read_table(path: &Path, spec: &TableSpec) -> Result<Table, Problems> {
     let mut problems = Collector::default();
-    match read_table_into(path, spec, &mut problems) {
-        Some(t) if problems.is_empty() => Ok(t),
-        _ => Err(problems.finish()),
-    }
+    let t = read_table_into(path, spec, &mut problems);
+    problems.into_result(t)
+}
+
+/// [`read_table`] of delimited text already in memory (`file` names it in messages). The
+/// fuzz harness drives the text readers through this, without a file system round trip.
+pub fn read_table_bytes(file: &str, bytes: Vec<u8>, spec: &TableSpec) -> Result<Table, Problems> {
+    let mut problems = Collector::default();
+    let sha256 = sha256_hex(&bytes);
+    let t = read_text(&Text::new(file, bytes), spec, &mut problems);
+    problems.into_result(t.map(|t| Table { sha256, ..t }))
 }
 
 /// [`read_table`] that records problems into `problems` and still returns whatever could be

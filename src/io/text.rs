@@ -11,6 +11,8 @@
 //!   numbers, so a message's `row 12` is the 12th record after the header.
 //! - Every other row must have as many fields as the header (`ragged-row`) and be valid
 //!   UTF-8 (`not-utf8`).
+//! - A header of one field that splits on a pipe, a colon or spaces is `wrong-delimiter`
+//!   (every table has two columns or more), and the file is not read further.
 
 use csv::{ByteRecord, ReaderBuilder, Trim};
 
@@ -85,6 +87,21 @@ impl Text {
                 }
             }
         }
+        if let [only] = &names[..] {
+            if let Some(sep) = foreign_delimiter(only) {
+                let message = format!(
+                    "the header is one single column, `{only}`: the file seems to be separated by {sep}; caveflow reads comma-, tab- or semicolon-separated text (export it again as CSV)"
+                );
+                problems.push(Problem::at(
+                    &self.file,
+                    Some(0),
+                    None,
+                    "wrong-delimiter",
+                    message,
+                ));
+                return None;
+            }
+        }
         Some(names)
     }
 
@@ -129,9 +146,10 @@ impl Text {
                     None,
                     "ragged-row",
                     format!(
-                        "the row has {} fields but the header has {}",
+                        "the row has {} fields but the header has {}{}",
                         rec.len(),
-                        headers.len()
+                        headers.len(),
+                        self.other_delimiter(&rec)
                     ),
                 ));
                 continue;
@@ -159,6 +177,52 @@ impl Text {
             visit(row, &cells, problems);
         }
         (row, skipped)
+    }
+}
+
+impl Text {
+    /// A hint for a ragged row that is one field holding another delimiter: the rows were
+    /// written with a different separator than the header.
+    fn other_delimiter(&self, rec: &ByteRecord) -> String {
+        let Some(field) = rec.get(0).filter(|_| rec.len() == 1) else {
+            return String::new();
+        };
+        [(b',', "a comma"), (b'\t', "a tab"), (b';', "a semicolon")]
+            .iter()
+            .filter(|(d, _)| *d != self.delimiter && field.contains(d))
+            .map(|(_, name)| {
+                format!(
+                    " (the row seems separated by {name}, the header by {})",
+                    name_of(self.delimiter)
+                )
+            })
+            .next()
+            .unwrap_or_default()
+    }
+}
+
+/// How a message names a delimiter.
+fn name_of(d: u8) -> &'static str {
+    match d {
+        b'\t' => "a tab",
+        b';' => "a semicolon",
+        _ => "a comma",
+    }
+}
+
+/// The separator a one-field header seems to use instead of comma, tab or semicolon: a
+/// pipe, a colon, or runs of spaces between names. Every table has at least two columns,
+/// so a one-field header that splits on one of these was exported with the wrong
+/// delimiter.
+fn foreign_delimiter(header: &str) -> Option<&'static str> {
+    if header.contains('|') {
+        Some("`|`")
+    } else if header.contains(':') {
+        Some("`:`")
+    } else if header.split_whitespace().count() > 1 {
+        Some("spaces")
+    } else {
+        None
     }
 }
 

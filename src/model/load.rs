@@ -11,12 +11,15 @@
 //! Densities must be positive (a density above 20 t/m³ is `units-kg-m3`); porosity and
 //! max_porosity lie in [0, 1) (a value in [2, 100] is `units-percent`; values in (1, 2)
 //! would be porosities under 2 % and are plainly `porosity-range`), with max_porosity ≥
-//! porosity (`n1-below-n0`); the friction angle lies in (0, 90); fragment sizes, Weibull
-//! parameters, strengths, opening widths and period lengths are positive; grades,
-//! percolation coefficients and tonnes are not negative. A drawpoint must lie within the
+//! porosity (`n1-below-n0`); the friction angle lies in (0, 90) (below 1.6 it is
+//! `units-radians`); fragment sizes, Weibull parameters, strengths, opening widths and
+//! period lengths are positive; a mean fragment size above 10 m or an opening width above
+//! 100 m is `units-mm`; grades, percolation coefficients and tonnes are not negative, and
+//! no schedule cell may exceed the block model's in-situ tonnes (`tonnes-exceed-model`). A drawpoint must lie within the
 //! grid's horizontal extent and no more than one block height below or above it.
 //!
 //! # Block model
+//! - Every centre coordinate lies within 10⁹ m of the origin (`coordinate-range`).
 //! - Block size per axis: the smallest positive spacing between distinct centre values.
 //!   An axis with a single centre value (a one-block-thick model) takes the smallest size
 //!   of the other axes. Every centre must sit a whole number of blocks from the lowest
@@ -29,7 +32,8 @@
 //!   column is absent). Every extra numeric column is a grade, in % by mass.
 //!
 //! # Drawpoints
-//! Opening width = the drawpoint's `width`, else that of its drawbell (its `drawbell` id,
+//! Two openings must not intersect (`overlapping-openings`). Opening width = the
+//! drawpoint's `width`, else that of its drawbell (its `drawbell` id,
 //! else its `bell_type`, joined to `drawbells.name`), else `flow.default_opening_width`.
 //!
 //! # Periods and schedule
@@ -140,8 +144,9 @@ pub fn load_scene(sc: &Scenario) -> Result<LoadedScene, Problems> {
         (None, Some(s)) => Some(l.periods_from_schedule(s)),
         (None, None) => None,
     };
+    let model_tonnes = blocks.as_ref().and_then(in_situ_tonnes);
     let schedule = match (&schedule, &drawpoints, &periods) {
-        (Some(s), Some(d), Some(p)) => Some(l.schedule(s, d, p)),
+        (Some(s), Some(d), Some(p)) => Some(l.schedule(s, d, p, model_tonnes)),
         _ => None,
     };
     let Loader {
@@ -171,6 +176,46 @@ struct Loader {
     problems: Collector,
     inputs: Vec<InputFile>,
     warnings: Vec<String>,
+}
+
+/// Friction angles below this many degrees are taken for radians (`units-radians`): π/2
+/// rounded up. No caved rock has a friction angle under 1.6°, and every angle in radians
+/// that a rock can have (20°–60° is 0.35–1.05 rad) lies below it.
+pub const RADIANS_BELOW: f64 = 1.6;
+/// Largest plausible mean fragment size, m. Caved fragmentation runs from centimetres to
+/// about 2 m (Henderson: 0.04–0.23 m; coarse primary caving d50 of 1–2 m); a mean above
+/// 10 m is almost always millimetres (`units-mm`).
+pub const MAX_FRAG_SIZE: f64 = 10.0;
+/// Largest plausible opening (drawpoint or drawbell) width, m. Drawpoints are 3–6 m wide and
+/// drawbells up to about 20 m; a width above 100 m is almost always millimetres
+/// (`units-mm`).
+pub const MAX_OPENING_WIDTH: f64 = 100.0;
+
+/// Largest block-centre coordinate accepted, m. Mine grids (UTM northings included) stay
+/// below 10⁷ m, and the Earth's circumference is 4 × 10⁷ m. Beyond 10⁹ m the block-size
+/// inference's relative tolerance (10⁻⁹ of the largest coordinate) would pass a metre and
+/// merge distinct blocks, so such a coordinate is reported as what it is.
+pub const MAX_COORDINATE: f64 = 1e9;
+
+/// Tonnes of solids in a block model: Σ block volume × ρ_s × (1 − n0). None when some
+/// block's density or porosity broke a rule (already reported), so that the total is never
+/// a guess.
+fn in_situ_tonnes(m: &BlockModel) -> Option<f64> {
+    let v: f64 = m.size.iter().product();
+    let ok =
+        |b: usize| (m.density[b] > 0.0 && m.density[b] <= 20.0) && (0.0..1.0).contains(&m.n0[b]);
+    (0..m.len())
+        .map(|b| ok(b).then(|| v * m.density[b] * (1.0 - m.n0[b])))
+        .sum::<Option<f64>>()
+        .filter(|t| t.is_finite())
+}
+
+/// The `units-mm` message for an opening width.
+fn width_in_mm(what: &str, w: f64) -> String {
+    format!(
+        "{what} width {w} m is not plausible (more than {MAX_OPENING_WIDTH} m): it looks like mm; divide by 1000 ({} m)",
+        w / 1000.0
+    )
 }
 
 /// Whether `v` is a valid porosity (NaN: missing, already reported); otherwise the rule and
@@ -388,7 +433,20 @@ impl Loader {
             if ok && n1[i] < n0[i] {
                 self.problem(file, at(i), Some(h1), "n1-below-n0", format!("max_porosity {} is below porosity {} (the dilated porosity n1 must be at least n0)", n1[i], n0[i]));
             }
-            if phi[i] <= 0.0 || phi[i] >= 90.0 {
+            if phi[i] > 0.0 && phi[i] < RADIANS_BELOW {
+                self.problem(
+                    file,
+                    at(i),
+                    Some(hphi),
+                    "units-radians",
+                    format!(
+                        "friction angle {}° is not plausible for caved rock: it looks like radians ({} rad = {:.1}°); give degrees",
+                        phi[i],
+                        phi[i],
+                        phi[i].to_degrees()
+                    ),
+                );
+            } else if phi[i] <= 0.0 || phi[i] >= 90.0 {
                 self.problem(
                     file,
                     at(i),
@@ -470,6 +528,17 @@ impl Loader {
                             shape[i]
                         ),
                     );
+                }
+                if f.is_finite() && f > MAX_FRAG_SIZE {
+                    let h = t.header(if size[i].is_nan() {
+                        "frag_scale"
+                    } else {
+                        "frag_size"
+                    });
+                    self.problem(file, at(i), Some(h), "units-mm", format!(
+                        "mean fragment size {f} m is not plausible (more than {MAX_FRAG_SIZE} m): it looks like mm; divide by 1000 ({} m)",
+                        f / 1000.0
+                    ));
                 }
                 m.frag.push(f);
             }
@@ -603,6 +672,21 @@ impl Loader {
         {
             return false; // a centre the reader could not read: no grid to check against
         }
+        let mut far = false;
+        for (a, values) in [&m.x, &m.y, &m.z].into_iter().enumerate() {
+            for (i, &c) in values.iter().enumerate() {
+                if c.abs() > MAX_COORDINATE {
+                    far = true;
+                    self.problem(file, Some(t.row(i)), Some(t.header(axes[a])), "coordinate-range", format!(
+                        "{} = {c:e} m is farther than {MAX_COORDINATE:e} m from the origin: no mine coordinate is (look for a stray value or a unit mistake)",
+                        axes[a]
+                    ));
+                }
+            }
+        }
+        if far {
+            return false;
+        }
         let mut size = [None; 3];
         for (a, values) in [&m.x, &m.y, &m.z].into_iter().enumerate() {
             match axis_size(values) {
@@ -680,6 +764,14 @@ impl Loader {
                     "not-positive",
                     format!("drawbell width {w} m must be positive"),
                 );
+            } else if w > MAX_OPENING_WIDTH {
+                self.problem(
+                    &t.file,
+                    Some(t.row(i)),
+                    Some(t.header("width")),
+                    "units-mm",
+                    width_in_mm("drawbell", w),
+                );
             }
             if !name.is_empty() && widths.insert(name.clone(), w).is_some() {
                 self.problem(
@@ -753,6 +845,14 @@ impl Loader {
                             "not-positive",
                             format!("opening width {w} m must be positive"),
                         );
+                    } else if w > MAX_OPENING_WIDTH {
+                        self.problem(
+                            file,
+                            row,
+                            Some(t.header("width")),
+                            "units-mm",
+                            width_in_mm("opening", w),
+                        );
                     }
                     w
                 }
@@ -806,10 +906,41 @@ impl Loader {
             d.width.push(w);
             d.zone.push(zone.get(i).cloned().unwrap_or_default());
         }
+        self.overlapping_openings(t, &d);
         if defaulted > 0 {
             self.warnings.push(format!("{file}: {defaulted} drawpoint(s) have no opening width (no width column value and no drawbell width); they use flow.default_opening_width = {default_width} m"));
         }
         Some(d)
+    }
+
+    /// `overlapping-openings`: two drawpoints whose openings intersect (centres closer than
+    /// the mean of their widths, horizontally and vertically). Drawpoints are cut through
+    /// pillars; one opening inside another is a duplicated or mistyped row, and the engine
+    /// would give all the material to one of them. Each pair is reported once, at the later
+    /// row. Drawpoints are swept in x order, so the check is O(n log n) on real layouts.
+    fn overlapping_openings(&mut self, t: &Table, d: &Drawpoints) {
+        let mut order: Vec<usize> = (0..d.len())
+            .filter(|&i| d.x[i].is_finite() && d.y[i].is_finite() && d.z[i].is_finite())
+            .filter(|&i| d.width[i].is_finite() && d.width[i] > 0.0)
+            .collect();
+        order.sort_by(|&a, &b| d.x[a].total_cmp(&d.x[b]));
+        let widest = order.iter().map(|&i| d.width[i]).fold(0.0, f64::max);
+        for (k, &a) in order.iter().enumerate() {
+            for &b in &order[k + 1..] {
+                if d.x[b] - d.x[a] >= widest {
+                    break;
+                }
+                let need = 0.5 * (d.width[a] + d.width[b]);
+                let apart = (d.x[b] - d.x[a]).hypot(d.y[b] - d.y[a]);
+                if apart < need && (d.z[b] - d.z[a]).abs() < need {
+                    let (first, later) = if a < b { (a, b) } else { (b, a) };
+                    self.problem(&t.file, Some(t.row(later)), Some(t.header("x")), "overlapping-openings", format!(
+                        "drawpoint `{}` ({} m wide) overlaps drawpoint `{}` ({} m wide) at row {}: their centres are {apart:.3} m apart, less than the {need:.3} m their openings need",
+                        d.name[later], d.width[later], d.name[first], d.width[first], t.row(first)
+                    ));
+                }
+            }
+        }
     }
 
     /// Periods from a periods table; None when a required column is missing.
@@ -879,8 +1010,17 @@ impl Loader {
         }
     }
 
-    /// The dense schedule; unknown drawpoints and periods and negative tonnes are errors.
-    fn schedule(&mut self, s: &ScheduleTable, d: &Drawpoints, p: &Periods) -> Schedule {
+    /// The dense schedule; unknown drawpoints and periods and negative tonnes are errors,
+    /// and so is a cell of more tonnes than the whole block model holds (`model_tonnes`,
+    /// when the block model could be read): no drawpoint can deliver that, and the engine
+    /// would spend its steps on it.
+    fn schedule(
+        &mut self,
+        s: &ScheduleTable,
+        d: &Drawpoints,
+        p: &Periods,
+        model_tonnes: Option<f64>,
+    ) -> Schedule {
         let file = s.file.as_str();
         let dp: HashMap<&str, usize> = d
             .name
@@ -905,6 +1045,17 @@ impl Loader {
                     Some(s.tonnes_header(e)),
                     "negative",
                     format!("{} tonnes must not be negative", e.tonnes),
+                );
+            } else if let Some(m) = model_tonnes.filter(|&m| e.tonnes > m) {
+                self.problem(
+                    file,
+                    row,
+                    Some(s.tonnes_header(e)),
+                    "tonnes-exceed-model",
+                    format!(
+                        "{} t is more than the whole block model holds ({m:.4e} t in situ): check the units (kg for t?) and the value",
+                        e.tonnes
+                    ),
                 );
             }
             let di = dp.get(e.drawpoint.as_str()).copied();

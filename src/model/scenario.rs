@@ -80,6 +80,10 @@ pub struct Flow {
     /// already dilated: the disk widens for free to the edge of the dilated ground
     /// (see `engine::imz`).
     pub min_porosity_jump: f64,
+    /// Refuse to run a scene where REBOP's method fails (`engine::stability`). false turns
+    /// each refusal into a warning, kept in the run log and the manifest: for studies of
+    /// the method itself, never for predictions.
+    pub enforce_stability: bool,
 }
 
 impl Default for Flow {
@@ -89,6 +93,7 @@ impl Default for Flow {
             shear_band_factor: 10.0,
             default_opening_width: 4.0,
             min_porosity_jump: 0.005,
+            enforce_stability: true,
         }
     }
 }
@@ -267,11 +272,16 @@ impl Default for StressSettings {
     }
 }
 
-/// A problem with the scenario file or a `--set`.
+/// A problem with the scenario file or a `--set`. Displayed like an input
+/// [`Problem`](crate::io::Problem): `scenario.toml: line 4, column 1: [unknown-key] …`.
+///
+/// Rules: `unreadable` (missing file, not UTF-8), `toml-syntax`, `unknown-key` (a typo
+/// never falls back to a default), `wrong-type` (a string where a number belongs, …),
+/// `bad-set` (a `--set` that is not `key=value`), `setting-range` (a value out of range).
 #[derive(Debug, thiserror::Error)]
 pub enum ScenarioError {
     /// Could not read the file.
-    #[error("{path}: cannot read scenario: {source}")]
+    #[error("{}: [unreadable] cannot read the scenario: {source}", .path.display())]
     Read {
         /// File.
         path: PathBuf,
@@ -279,13 +289,67 @@ pub enum ScenarioError {
         source: std::io::Error,
     },
     /// TOML syntax or a key/type problem.
-    #[error("{path}: {message}")]
+    #[error("{path}: {}[{rule}] {message}", at(.line))]
     Parse {
         /// File (or `--set`).
         path: String,
+        /// 1-based line and column in the file, where known.
+        line: Option<(usize, usize)>,
+        /// Stable rule id (see the type's docs).
+        rule: &'static str,
         /// What is wrong.
         message: String,
     },
+}
+
+impl ScenarioError {
+    /// The rule id.
+    pub fn rule(&self) -> &'static str {
+        match self {
+            ScenarioError::Read { .. } => "unreadable",
+            ScenarioError::Parse { rule, .. } => rule,
+        }
+    }
+
+    /// A problem not tied to a place in the file.
+    fn at(path: &str, rule: &'static str, message: String) -> ScenarioError {
+        ScenarioError::Parse {
+            path: path.into(),
+            line: None,
+            rule,
+            message,
+        }
+    }
+
+    /// A TOML error, located in `text` when it has a span. `syntax`: the text did not
+    /// parse at all; otherwise the rule is read from serde's wording.
+    fn toml(path: &str, text: &str, e: &toml::de::Error, syntax: bool) -> ScenarioError {
+        let message = e.message().trim().to_string();
+        let rule = if syntax {
+            "toml-syntax"
+        } else if message.contains("unknown field") || message.contains("unknown variant") {
+            "unknown-key"
+        } else {
+            "wrong-type"
+        };
+        let line = e.span().map(|r| {
+            let before = text.get(..r.start).unwrap_or(text);
+            let line = before.matches('\n').count() + 1;
+            let col = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
+            (line, col)
+        });
+        ScenarioError::Parse {
+            path: path.into(),
+            line,
+            rule,
+            message,
+        }
+    }
+}
+
+/// `line L, column C: ` or nothing.
+fn at(line: &Option<(usize, usize)>) -> String {
+    line.map_or(String::new(), |(l, c)| format!("line {l}, column {c}: "))
 }
 
 impl Scenario {
@@ -308,24 +372,19 @@ impl Scenario {
         base: &Path,
     ) -> Result<Scenario, ScenarioError> {
         let mut value: toml::Table =
-            text.parse()
-                .map_err(|e: toml::de::Error| ScenarioError::Parse {
-                    path: origin.into(),
-                    message: e.to_string(),
-                })?;
+            toml::from_str(text).map_err(|e| ScenarioError::toml(origin, text, &e, true))?;
+        // The file alone first, so that its key and type errors carry a line and column
+        // (a `toml::Value` keeps no spans); then with the overrides, whose errors are theirs.
+        toml::from_str::<Scenario>(text)
+            .map_err(|e| ScenarioError::toml(origin, text, &e, false))?;
         for s in sets {
             apply_set(&mut value, s)?;
         }
-        let mut sc: Scenario =
-            Scenario::deserialize(toml::Value::Table(value)).map_err(|e| ScenarioError::Parse {
-                path: origin.into(),
-                message: e.to_string(),
-            })?;
+        let mut sc: Scenario = Scenario::deserialize(toml::Value::Table(value))
+            .map_err(|e| ScenarioError::toml("--set", "", &e, false))?;
         sc.resolve_paths(base);
-        sc.check().map_err(|message| ScenarioError::Parse {
-            path: origin.into(),
-            message,
-        })?;
+        sc.check()
+            .map_err(|message| ScenarioError::at(origin, "setting-range", message))?;
         Ok(sc)
     }
 
@@ -412,10 +471,7 @@ impl Scenario {
 /// Applies one `section.key=value` override. The value is parsed as TOML (number, bool,
 /// string, array); a bare word that is not valid TOML is taken as a string.
 fn apply_set(root: &mut toml::Table, set: &str) -> Result<(), ScenarioError> {
-    let err = |message: String| ScenarioError::Parse {
-        path: "--set".into(),
-        message,
-    };
+    let err = |message: String| ScenarioError::at("--set", "bad-set", message);
     let (key, raw) = set.split_once('=').ok_or_else(|| {
         err(format!(
             "`{set}`: expected key=value, e.g. resolution.layer_thickness=0.02"
@@ -423,10 +479,11 @@ fn apply_set(root: &mut toml::Table, set: &str) -> Result<(), ScenarioError> {
     })?;
     let key = key.trim();
     let raw = raw.trim();
-    let value: toml::Value = match format!("v = {raw}").parse::<toml::Table>() {
-        Ok(mut t) => t.remove("v").unwrap(),
-        Err(_) => toml::Value::String(raw.to_string()),
-    };
+    let value = match format!("v = {raw}").parse::<toml::Table>() {
+        Ok(mut t) if t.len() == 1 => t.remove("v"),
+        _ => None,
+    }
+    .unwrap_or_else(|| toml::Value::String(raw.to_string()));
     let parts: Vec<&str> = key.split('.').collect();
     if parts.iter().any(|p| p.is_empty()) {
         return Err(err(format!("`{set}`: empty key segment")));

@@ -27,6 +27,10 @@
 //! ([`MAX_SIDE`]). Grade curves are compared between drawpoints, so many drawpoints share one
 //! pair of axes across a grid of small panels instead of a tangle of lines on one plot.
 
+mod stability;
+
+pub use self::stability::{stability_chart, RegionBand};
+
 use std::cmp::Ordering;
 use std::collections::BTreeMap;
 use std::error::Error as StdError;

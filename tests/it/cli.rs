@@ -142,7 +142,8 @@ fn run_with_tables_and_set() {
         ])
         .output()
         .unwrap();
-    assert_eq!(bad.status.code(), Some(2));
+    // A bad setting is invalid input: exit 1.
+    assert_eq!(bad.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&bad.stderr).contains("flow.q must be a positive number"));
 }
 
@@ -253,3 +254,342 @@ fn killed_run_resumes_to_identical_outputs() {
 }
 
 const CHECKPOINT: &str = caveflow::cli::CHECKPOINT_FILE;
+/// The small valid scene of the io tests, with one file replaced, in a folder with its
+/// scenario.toml.
+fn scene_dir(name: &str, bytes: &[u8]) -> tempfile::TempDir {
+    use crate::io::{BLOCKS, DRAWPOINTS_CSV, PERIODS_CSV, SCHEDULE_CSV};
+    let tmp = tempfile::tempdir().unwrap();
+    let files: [(&str, &[u8]); 5] = [
+        ("blocks.csv", BLOCKS.as_bytes()),
+        ("drawpoints.csv", DRAWPOINTS_CSV.as_bytes()),
+        ("periods.csv", PERIODS_CSV.as_bytes()),
+        ("schedule.csv", SCHEDULE_CSV.as_bytes()),
+        (
+            "scenario.toml",
+            b"[inputs]\nblocks = \"blocks.csv\"\ndrawpoints = \"drawpoints.csv\"\nperiods = \"periods.csv\"\nschedule = \"schedule.csv\"\n[outputs]\ncharts = false\n",
+        ),
+    ];
+    for (f, b) in files {
+        std::fs::write(tmp.path().join(f), if f == name { bytes } else { b }).unwrap();
+    }
+    tmp
+}
+
+/// Every kind of bad input of issue 9, end to end through `validate` and `run`: exit 1, a
+/// message naming the file, the row (or line) and column where there is one, and the rule;
+/// and `run` leaves no output directory behind.
+#[test]
+fn bad_input_exits_1_with_file_row_column_rule_and_writes_nothing() {
+    use crate::io::{BLOCKS, SCHEDULE_CSV};
+    let mut non_utf8 = BLOCKS.as_bytes().to_vec();
+    let at = BLOCKS.find("waste").unwrap();
+    non_utf8[at + 1] = 0xE1;
+    let kg = BLOCKS.replacen("2.7,0.3,0.45,38", "2700,0.3,0.45,38", 1);
+    let pct = BLOCKS.replacen("2.7,0.3,0.45,38", "2.7,30,45,38", 1);
+    let rad = BLOCKS.replacen("0.3,0.45,38", "0.3,0.45,0.66", 1);
+    let mm = BLOCKS.replacen("38,0.2,ore,1.0", "38,230,ore,1.0", 1);
+    let ragged = BLOCKS.replacen("15,5,5,2,2.7", "15,5,5,2,2.7,9", 1);
+    let dup = BLOCKS.replacen("x,y,z,block_id", "x,y,z,Easting", 1);
+    let huge = SCHEDULE_CSV.replacen("1,DP2,100", "1,DP2,1e300", 1);
+    let pipes = BLOCKS.replace(',', "|");
+    let comma = BLOCKS
+        .replace(',', ";")
+        .replacen("0.3;0.45;38", "0,3;0.45;38", 1);
+    let cases: Vec<(&str, Vec<u8>, &str)> = vec![
+        (
+            "blocks.csv",
+            kg.into(),
+            "blocks.csv: row 1, column solids_density: [units-kg-m3]",
+        ),
+        (
+            "blocks.csv",
+            pct.into(),
+            "blocks.csv: row 1, column porosity: [units-percent]",
+        ),
+        (
+            "blocks.csv",
+            rad.into(),
+            "blocks.csv: row 1, column friction_angle: [units-radians]",
+        ),
+        (
+            "blocks.csv",
+            mm.into(),
+            "blocks.csv: row 1, column frag_size: [units-mm]",
+        ),
+        (
+            "blocks.csv",
+            ragged.into(),
+            "blocks.csv: row 2: [ragged-row]",
+        ),
+        (
+            "blocks.csv",
+            dup.into(),
+            "blocks.csv: header, column Easting: [duplicate-header]",
+        ),
+        (
+            "blocks.csv",
+            non_utf8,
+            "blocks.csv: row 5, column lithology: [not-utf8]",
+        ),
+        ("blocks.csv", Vec::new(), "blocks.csv: [empty-table]"),
+        (
+            "blocks.csv",
+            pipes.into(),
+            "blocks.csv: header: [wrong-delimiter]",
+        ),
+        (
+            "blocks.csv",
+            comma.into(),
+            "blocks.csv: row 1, column porosity: [mistyped]",
+        ),
+        (
+            "schedule.csv",
+            huge.into(),
+            "schedule.csv: row 2, column tonnes: [tonnes-exceed-model]",
+        ),
+        (
+            "schedule.csv",
+            b"DPName\tJan-09\nDP9\t5\n".to_vec(),
+            "schedule.csv: row 1, column DPName: [unknown-drawpoint]",
+        ),
+        (
+            "scenario.toml",
+            b"[inputs]\nblocks = 3\n".to_vec(),
+            "scenario.toml: line 2, column 10: [wrong-type]",
+        ),
+        (
+            "scenario.toml",
+            b"[input]\n".to_vec(),
+            "scenario.toml: line 1, column 2: [unknown-key]",
+        ),
+        (
+            "scenario.toml",
+            b"[inputs\n".to_vec(),
+            "scenario.toml: line 1, column 8: [toml-syntax]",
+        ),
+        (
+            "scenario.toml",
+            b"[inputs]\nblocks = \"gone.csv\"\n".to_vec(),
+            "gone.csv: [unreadable]",
+        ),
+    ];
+    for (file, bytes, want) in cases {
+        let dir = scene_dir(file, &bytes);
+        let scenario = dir.path().join("scenario.toml");
+        let out_dir = dir.path().join("out");
+        for cmd in ["validate", "run"] {
+            let mut c = caveflow();
+            c.arg(cmd).arg(&scenario);
+            if cmd == "run" {
+                c.arg("--out").arg(&out_dir);
+            }
+            let out = c.output().unwrap();
+            let err = String::from_utf8_lossy(&out.stderr);
+            assert_eq!(out.status.code(), Some(1), "{cmd} {file} ({want}):\n{err}");
+            assert!(
+                err.contains(want),
+                "{cmd} {file}: expected `{want}` in:\n{err}"
+            );
+            assert!(!err.contains("panicked"), "{err}");
+        }
+        assert!(
+            !out_dir.exists(),
+            "{want}: run left {} behind",
+            out_dir.display()
+        );
+    }
+    // A Parquet drawpoints table whose width column holds text.
+    let dir = scene_dir("none", b"");
+    let dp = dir.path().join("drawpoints.parquet");
+    let f = |v: Vec<f64>| std::sync::Arc::new(arrow::array::Float64Array::from(v)) as _;
+    crate::io::write_parquet(
+        &dp,
+        vec![
+            (
+                "name",
+                std::sync::Arc::new(arrow::array::StringArray::from(vec!["DP1", "DP2"])) as _,
+            ),
+            ("x", f(vec![5.0, 15.0])),
+            ("y", f(vec![5.0, 15.0])),
+            ("z", f(vec![0.0, 0.0])),
+            (
+                "width",
+                std::sync::Arc::new(arrow::array::StringArray::from(vec!["4", "4 m"])) as _,
+            ),
+        ],
+    );
+    let out = caveflow()
+        .arg("validate")
+        .arg(dir.path().join("scenario.toml"))
+        .arg("--drawpoints")
+        .arg(&dp)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains(
+            "drawpoints.parquet: row 2, column width: [mistyped] expected a number, found `4 m`"
+        ),
+        "{err}"
+    );
+    // A Parquet file that panics inside the parquet crate (found by the fuzz harness): the
+    // panic is caught without a word on stderr, and reported.
+    let dir = scene_dir("none", b"");
+    let crash = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/data/io/fuzz/negative_column_start.parquet");
+    let out = caveflow()
+        .arg("validate")
+        .arg("--blocks")
+        .arg(dir.path().join("blocks.csv"))
+        .arg("--drawpoints")
+        .arg(dir.path().join("drawpoints.csv"))
+        .arg("--schedule")
+        .arg(&crash)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("negative_column_start.parquet: [unreadable] the Parquet reader failed")
+            && !err.contains("panicked"),
+        "{err}"
+    );
+}
+
+/// A scene where REBOP fails is refused by `validate` and `run` (exit 1, the rule and the
+/// summary's reason, no output); a degraded one runs, and its warning reaches the run log
+/// and the manifest.
+#[test]
+fn stability_refusal_and_warning_end_to_end() {
+    use crate::io::BLOCKS;
+    // Fragments of 3 m through 4 m drawpoints: d̄/w = 0.75.
+    let coarse = BLOCKS.replace("38,0.2,ore", "38,3,ore");
+    let dir = scene_dir("blocks.csv", coarse.as_bytes());
+    let out_dir = dir.path().join("out");
+    for cmd in ["validate", "run"] {
+        let out = caveflow()
+            .arg(cmd)
+            .arg(dir.path().join("scenario.toml"))
+            .args(
+                ["--out", out_dir.to_str().unwrap()]
+                    .iter()
+                    .take(if cmd == "run" { 2 } else { 0 }),
+            )
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{cmd}: {err}");
+        assert!(
+            err.contains("stability [frag-to-width] refused: drawpoint DP1: d̄/w = 0.750")
+                && err.contains("(and 1 more drawpoint(s))"),
+            "{cmd}: {err}"
+        );
+    }
+    assert!(!out_dir.exists());
+    // Fragments of 2 cm: d̄/w = 0.005, over-predicted IMZ widths (summary §3.4).
+    let fine = BLOCKS.replace("38,0.2,ore", "38,0.02,ore");
+    let dir = scene_dir("blocks.csv", fine.as_bytes());
+    let out_dir = dir.path().join("out");
+    let out = caveflow()
+        .arg("run")
+        .arg(dir.path().join("scenario.toml"))
+        .arg("--out")
+        .arg(&out_dir)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    let want = "stability [frag-to-width] degraded: drawpoint DP1: d̄/w = 0.0050";
+    assert!(err.contains(want), "{err}");
+    let manifest: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out_dir.join("manifest.json")).unwrap()).unwrap();
+    assert!(
+        manifest["warnings"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|w| w.as_str().unwrap().contains(want)),
+        "{manifest}"
+    );
+}
+
+/// What is tolerated is tolerated end to end: a BOM, quoted and padded numbers, tabs,
+/// semicolons, a tab-delimited wide schedule, CRLF line ends.
+#[test]
+fn tolerated_variants_validate() {
+    use crate::io::BLOCKS;
+    let bom = format!("\u{feff}{BLOCKS}");
+    let quoted = BLOCKS.replacen("2.7,0.3", "\" 2.7 \",\"0.3\"", 1);
+    let tabs = BLOCKS.replace(',', "\t");
+    let semi = BLOCKS.replace(',', ";");
+    let crlf = BLOCKS.replace('\n', "\r\n");
+    for (file, text) in [
+        ("blocks.csv", bom.as_str()),
+        ("blocks.csv", quoted.as_str()),
+        ("blocks.csv", tabs.as_str()),
+        ("blocks.csv", semi.as_str()),
+        ("blocks.csv", crlf.as_str()),
+        (
+            "schedule.csv",
+            "DPName\tJan-09\tFeb-09\nDP1\t100\t50\nDP2\t100\t\n",
+        ),
+    ] {
+        let dir = scene_dir(file, text.as_bytes());
+        let out = caveflow()
+            .arg("validate")
+            .arg(dir.path().join("scenario.toml"))
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{file}: {text:?}\n{err}");
+        assert!(String::from_utf8_lossy(&out.stdout).contains("ok: 8 blocks"));
+    }
+}
+
+/// The three inputs that crash MassFlow 9.7 (issue 9): a point outside the model is
+/// refused with its row; a tab-delimited schedule and a skipped period run.
+#[test]
+fn massflow_crash_cases() {
+    use crate::io::DRAWPOINTS_CSV;
+    let outside = DRAWPOINTS_CSV.replace("DP2,15,15,0,4", "DP2,500,15,0,4");
+    let dir = scene_dir("drawpoints.csv", outside.as_bytes());
+    let out = caveflow()
+        .arg("validate")
+        .arg(dir.path().join("scenario.toml"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains(
+            "drawpoints.csv: row 2, column x: [outside-model] drawpoint `DP2` at (500, 15)"
+        ),
+        "{err}"
+    );
+    // Periods 1 and 3, no period 2; the schedule tab-delimited.
+    let dir = scene_dir(
+        "periods.csv",
+        b"period,name,days\n1,Jan-09,31\n3,Mar-09,31\n",
+    );
+    std::fs::write(
+        dir.path().join("schedule.csv"),
+        "period\tdrawpoint\ttonnes\n1\tDP1\t100\n3\tDP1\t50\n3\tDP2\t80\n",
+    )
+    .unwrap();
+    let out_dir = dir.path().join("out");
+    let out = caveflow()
+        .arg("run")
+        .arg(dir.path().join("scenario.toml"))
+        .arg("--out")
+        .arg(&out_dir)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    let manifest: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out_dir.join("manifest.json")).unwrap()).unwrap();
+    let b = &manifest["mass_balance"];
+    assert!(b.is_object(), "{manifest}");
+    assert_eq!(b["scheduled_tonnes"], 230.0, "{manifest}");
+}

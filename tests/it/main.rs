@@ -5,5 +5,7 @@ mod engine;
 mod io;
 mod mechanisms;
 mod output;
+mod props;
 mod rilling;
+mod stability;
 mod stress;
