@@ -63,6 +63,10 @@ const LAYER_COLOURS: [RGBColor; 2] = [RGBColor(45, 95, 170), RGBColor(140, 140, 
 const IMZ_COLOUR: RGBColor = RGBColor(245, 165, 0);
 /// IEZ outline (magenta).
 const IEZ_COLOUR: RGBColor = RGBColor(200, 0, 160);
+/// Free surface (summary Fig. 33).
+const SURFACE_COLOUR: RGBColor = RGBColor(120, 70, 20);
+/// Uncaved ground.
+const UNCAVED_FILL: RGBColor = RGBColor(190, 190, 190);
 /// Fill of the model extent on a section.
 const MODEL_FILL: RGBColor = RGBColor(250, 247, 238);
 /// Edge of the model extent.
@@ -205,6 +209,11 @@ pub struct Section {
     /// Drawpoints on the section: (horizontal, z, label), e.g. the name and the mass drawn.
     /// Labels are set below the model base, staggered over up to three rows when they crowd.
     pub drawpoints: Vec<(f64, f64, String)>,
+    /// The free surface along the section (top of the caved material), a polyline; non-finite
+    /// points break it (summary Fig. 33).
+    pub surface: Vec<(f64, f64)>,
+    /// Uncaved ground on the section at the end of the run: rectangles ((x0, z0), (x1, z1)).
+    pub uncaved: Vec<((f64, f64), (f64, f64))>,
 }
 
 /// Grade against cumulative tonnes for one drawpoint (summary Figs 31–32).
@@ -1254,6 +1263,18 @@ fn section_legend(section: &Section) -> Vec<LegendEntry> {
             label: "IEZ (origin of drawn material)",
         });
     }
+    if !section.surface.is_empty() {
+        entries.push(LegendEntry {
+            sample: Sample::Line(SURFACE_COLOUR, 3),
+            label: "Free surface",
+        });
+    }
+    if !section.uncaved.is_empty() {
+        entries.push(LegendEntry {
+            sample: Sample::Line(UNCAVED_FILL, 8),
+            label: "Uncaved ground",
+        });
+    }
     if !section.drawpoints.is_empty() {
         entries.push(LegendEntry {
             sample: Sample::Triangle(BLACK),
@@ -1286,6 +1307,10 @@ impl Render for SectionPlot<'_> {
         ];
         root.draw(&Rectangle::new(extent, MODEL_FILL.filled()))?;
         root.draw(&Rectangle::new(extent, FRAME_COLOUR.stroke_width(1)))?;
+        for &(a, b) in &s.uncaved {
+            let r = [f.px((a.0, b.1)), f.px((b.0, a.1))];
+            root.draw(&Rectangle::new(r, UNCAVED_FILL.filled()))?;
+        }
         for (i, layer) in s.layers.iter().enumerate() {
             for run in finite_runs(layer) {
                 root.draw(&PathElement::new(f.path(&run), LAYER_COLOURS[i % 2]))?;
@@ -1295,6 +1320,12 @@ impl Render for SectionPlot<'_> {
             for run in outlines.iter().flat_map(|o| finite_runs(o)) {
                 root.draw(&PathElement::new(f.path(&run), colour.stroke_width(3)))?;
             }
+        }
+        for run in finite_runs(&s.surface) {
+            root.draw(&PathElement::new(
+                f.path(&run),
+                SURFACE_COLOUR.stroke_width(3),
+            ))?;
         }
         let label_style = dp_label_style();
         for ((x, z, label), &row) in s.drawpoints.iter().zip(&self.label_rows) {
@@ -1846,6 +1877,8 @@ pub(crate) mod tests {
                 (0.85, 0.0, "DP1: 0.412 t".into()),
                 (1.55, 0.0, "DP2: 0.398 t".into()),
             ],
+            surface: vec![(0.0, 3.3), (1.0, 3.3), (1.2, 3.0), (1.4, 3.3), (2.4, 3.3)],
+            uncaved: vec![((1.8, 2.8), (2.4, 3.3))],
         }
     }
 

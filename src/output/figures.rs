@@ -245,6 +245,40 @@ pub fn drawdown_section(
         section.layers = layers(lat, snap, y, spacing);
     }
 
+    // The free surface of the last period it was written for, along the lattice row
+    // nearest the section, and the ground still uncaved at the end of the run.
+    let sf = &run.surface;
+    if let Some(last) = sf.period.iter().copied().max() {
+        let rows: Vec<usize> = (0..sf.z.len()).filter(|&k| sf.period[k] == last).collect();
+        let nearest = rows
+            .iter()
+            .map(|&k| (sf.y[k] - y).abs())
+            .fold(f64::INFINITY, f64::min);
+        let mut line: Vec<(f64, f64)> = rows
+            .iter()
+            .filter(|&&k| (sf.y[k] - y).abs() <= nearest + 1e-9)
+            .map(|&k| (sf.x[k], sf.z[k]))
+            .collect();
+        line.sort_by(|a, b| a.0.total_cmp(&b.0));
+        section.surface = line;
+    }
+    if let Some(&end) = scene.periods.id.last() {
+        if let Some([_, j, _]) = bm.cell([bm.origin[0], y, bm.origin[2]]) {
+            for k in 0..bm.dims[2] {
+                for i in 0..bm.dims[0] {
+                    let b = bm.index[i + bm.dims[0] * (j + bm.dims[1] * k)];
+                    if b != crate::model::block_model::NO_BLOCK && !bm.flowable(b as usize, end) {
+                        let x0 = bm.origin[0] + i as f64 * bm.size[0];
+                        let z0 = bm.origin[2] + k as f64 * bm.size[2];
+                        section
+                            .uncaved
+                            .push(((x0, z0), (x0 + bm.size[0], z0 + bm.size[2])));
+                    }
+                }
+            }
+        }
+    }
+
     // IMZ disks of the last period in the table.
     let imz = &run.imz;
     let last = imz.period.iter().copied().max();
@@ -272,7 +306,12 @@ pub fn drawdown_section(
                 .filter(|&i| t.drawpoint[i] as usize == d && lat.index(1, t.origin_y[i]) == j)
                 .map(|i| (t.origin_x[i], t.origin_z[i]))
                 .collect();
-            let outline = iez_outline(&points, dp.x[d], lat.s);
+            // The outline is symmetric about the axis; material rilled in from one side
+            // would mirror past the model's edge on the other, so it is clipped to the model.
+            let outline: Vec<(f64, f64)> = iez_outline(&points, dp.x[d], lat.s)
+                .into_iter()
+                .map(|(x, z)| (x.clamp(bm.origin[0], max[0]), z))
+                .collect();
             if !outline.is_empty() {
                 section.iez.push(outline);
             }

@@ -284,3 +284,62 @@ fn rilling_brings_high_grade_from_the_north_under_uncaved_ground() {
         }
     }
 }
+
+#[test]
+fn boundary_section_charts_with_and_without_rilling() {
+    // The boundary scene above turned a quarter (x ↔ y: the cap over x < 0, grade rising to
+    // the east), so the run's drawdown section along the drawpoint row is the summary's
+    // Fig. 33 view: drawdown, the air gap under uncaved ground and, with rilling, the rilled
+    // slope. Both charts are written; look at them with `CAVEFLOW_CHARTS=dir`.
+    let b = UniformBox {
+        extent: [1.2, 1.2, 1.0],
+        drawpoints: vec![(-0.25, 0.0, 0.12)],
+        periods: 10,
+        tonnes: 0.012,
+        ..UniformBox::castro_isolated()
+    };
+    let mut scene = b.scene();
+    let bm = &mut scene.blocks;
+    for k in 0..bm.len() {
+        if bm.x[k] < 0.0 && bm.z[k] > 0.5 {
+            bm.cave_period[k] = 1000;
+        }
+        bm.grades[0][k] = 1.0 + bm.x[k];
+    }
+    let keep = std::env::var_os("CAVEFLOW_CHARTS").map(std::path::PathBuf::from);
+    let tmp = tempfile::tempdir().unwrap();
+    for rilling in [false, true] {
+        let mut sc = scenario(rilling);
+        sc.outputs.marker_periods = vec![10];
+        let out = run(&scene, &sc);
+        let dir = keep
+            .clone()
+            .unwrap_or_else(|| tmp.path().to_path_buf())
+            .join(if rilling { "rilling_on" } else { "rilling_off" });
+        let files =
+            caveflow::output::figures::write_run_charts(&dir, &scene, &out, Some(0.1)).unwrap();
+        let sections: Vec<_> = files
+            .iter()
+            .filter(|f| {
+                f.file_name()
+                    .unwrap()
+                    .to_string_lossy()
+                    .starts_with("section")
+            })
+            .collect();
+        assert!(!sections.is_empty());
+        for f in sections {
+            let bytes = std::fs::read(f).unwrap();
+            assert!(
+                bytes.starts_with(b"\x89PNG") && bytes.len() > 10_000,
+                "{f:?}"
+            );
+        }
+        // The surface is drawn on the section, under the cap it lies below 0.5 m.
+        let sf = &out.surface;
+        let low = (0..sf.z.len())
+            .filter(|&k| sf.x[k] < -0.05 && sf.z[k] < 0.5)
+            .count();
+        assert!(low > 0, "no air gap under the cap");
+    }
+}
