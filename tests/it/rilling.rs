@@ -217,27 +217,41 @@ fn an_air_gap_forms_when_draw_outpaces_the_cave_and_closes_when_it_catches_up() 
     assert_eq!(ex.air_gap[last], 0.0);
 }
 
+/// The boundary scene: a 1.2 m box whose south half (y < 0) is capped above 0.5 m by
+/// ground that never caves, grade = 1 + y (%), one drawpoint at y = −0.25 under the cap.
+/// `turned`: the same a quarter turn round (x ↔ y: cap over x < 0, grade rising east).
+fn boundary_scene(turned: bool) -> Scene {
+    let dp = if turned {
+        (-0.25, 0.0, 0.12)
+    } else {
+        (0.0, -0.25, 0.12)
+    };
+    let mut scene = UniformBox {
+        extent: [1.2, 1.2, 1.0],
+        drawpoints: vec![dp],
+        periods: 10,
+        tonnes: 0.012,
+        ..UniformBox::castro_isolated()
+    }
+    .scene();
+    let bm = &mut scene.blocks;
+    for k in 0..bm.len() {
+        let north = if turned { bm.x[k] } else { bm.y[k] };
+        if north < 0.0 && bm.z[k] > 0.5 {
+            bm.cave_period[k] = 1000;
+        }
+        bm.grades[0][k] = 1.0 + north;
+    }
+    scene
+}
+
 #[test]
 fn rilling_brings_high_grade_from_the_north_under_uncaved_ground() {
     // Henderson's southeast boundary in miniature (summary §8, Fig. 33): a 1.2 m box whose
     // south half (y < 0) is capped by ground that never caves above 0.5 m (the limit of the
     // level above), with a grade that rises to the north (grade = 1 + y, %). The drawpoint
     // sits under the cap near the boundary; its IMZ reaches the cap and an air gap opens.
-    let b = UniformBox {
-        extent: [1.2, 1.2, 1.0],
-        drawpoints: vec![(0.0, -0.25, 0.12)],
-        periods: 10,
-        tonnes: 0.012,
-        ..UniformBox::castro_isolated()
-    };
-    let mut scene = b.scene();
-    let bm = &mut scene.blocks;
-    for k in 0..bm.len() {
-        if bm.y[k] < 0.0 && bm.z[k] > 0.5 {
-            bm.cave_period[k] = 1000;
-        }
-        bm.grades[0][k] = 1.0 + bm.y[k];
-    }
+    let scene = boundary_scene(false);
     let off = run(&scene, &scenario(false));
     let on = run(&scene, &scenario(true));
     let (r_off, r_on) = (rows(&off, 0), rows(&on, 0));
@@ -291,21 +305,7 @@ fn boundary_section_charts_with_and_without_rilling() {
     // the east), so the run's drawdown section along the drawpoint row is the summary's
     // Fig. 33 view: drawdown, the air gap under uncaved ground and, with rilling, the rilled
     // slope. Both charts are written; look at them with `CAVEFLOW_CHARTS=dir`.
-    let b = UniformBox {
-        extent: [1.2, 1.2, 1.0],
-        drawpoints: vec![(-0.25, 0.0, 0.12)],
-        periods: 10,
-        tonnes: 0.012,
-        ..UniformBox::castro_isolated()
-    };
-    let mut scene = b.scene();
-    let bm = &mut scene.blocks;
-    for k in 0..bm.len() {
-        if bm.x[k] < 0.0 && bm.z[k] > 0.5 {
-            bm.cave_period[k] = 1000;
-        }
-        bm.grades[0][k] = 1.0 + bm.x[k];
-    }
+    let scene = boundary_scene(true);
     let keep = std::env::var_os("CAVEFLOW_CHARTS").map(std::path::PathBuf::from);
     let tmp = tempfile::tempdir().unwrap();
     for rilling in [false, true] {
