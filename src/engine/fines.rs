@@ -251,6 +251,7 @@ mod tests {
             geoms: &geoms,
             motion: &motion_ref,
             grid: &grid,
+            ground: None,
         };
         let mut bm = crate::model::synthetic::UniformBox::castro_isolated()
             .scene()
@@ -329,6 +330,7 @@ mod tests {
             geoms: &geoms,
             motion: &motion_ref,
             grid: &grid,
+            ground: None,
         };
         let scene = crate::model::synthetic::UniformBox {
             extent: [10.0, 10.0, 6.0],

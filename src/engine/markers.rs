@@ -214,6 +214,9 @@ pub struct MotionField<'a> {
     pub motion: &'a [&'a [DiskMotion]],
     /// Grid over the drawing IMZs.
     pub grid: &'a ImzGrid,
+    /// The block model and period, to tell where a disk cut by a wall or uncaved ground has
+    /// no dilating ring behind a marker (None: open ground everywhere).
+    pub ground: Option<(&'a BlockModel, i64)>,
 }
 
 /// Result of moving one marker.
@@ -324,12 +327,25 @@ impl MotionField<'_> {
             let dv_top = motion.get(i + 1).map_or(0.0, |u| u.dv);
             let dv = m.dv + (dv_top - m.dv) * t_in;
             let dz = vertical(dv, m.r, m.w, a) / m.area_frac;
-            let da = radial(m.r_old, m.r, m.jump, m.n1, a);
             let (ux, uy) = if a > 0.0 {
                 (ex / a, ey / a)
             } else {
                 (0.0, 0.0)
             };
+            let mut da = radial(m.r_old, m.r, m.jump, m.n1, a);
+            // The inward move is the dilating ring pushing in along the marker's ray. In a
+            // disk cut by a wall or uncaved ground (A_f < 1) there is no ring on a ray that
+            // leaves the flowable ground before the new radius, so nothing pushes there
+            // (otherwise markers are pulled off the wall, leaving a void behind them).
+            if da != 0.0 && m.area_frac < 1.0 {
+                if let Some((bm, period)) = self.ground {
+                    let reach = m.r * (1.0 - 1e-9);
+                    let q = [g.x + ux * reach, g.y + uy * reach, p[2]];
+                    if !bm.locate(q).is_some_and(|b| bm.flowable(b, period)) {
+                        da = 0.0;
+                    }
+                }
+            }
             st.dx += da * ux;
             st.dy += da * uy;
             st.dz += dz;

@@ -345,6 +345,7 @@ impl<'a> Engine<'a> {
             geoms: &geoms,
             motion: &motion,
             grid: &grid,
+            ground: Some((&self.scene.blocks, period)),
         };
         self.steps_done += 1;
         let perc = fines::Percolation {
