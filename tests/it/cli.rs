@@ -491,13 +491,7 @@ fn stability_refusal_and_warning_end_to_end() {
     let fine = BLOCKS.replace("38,0.2,ore", "38,0.02,ore");
     let dir = scene_dir("blocks.csv", fine.as_bytes());
     let out_dir = dir.path().join("out");
-    let out = caveflow()
-        .arg("run")
-        .arg(dir.path().join("scenario.toml"))
-        .arg("--out")
-        .arg(&out_dir)
-        .output()
-        .unwrap();
+    let out = run_scenario(&dir.path().join("scenario.toml"), &out_dir);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{err}");
     let want = "stability [frag-to-width] degraded: drawpoint DP1: d̄/w = 0.0050";
@@ -578,13 +572,7 @@ fn massflow_crash_cases() {
     )
     .unwrap();
     let out_dir = dir.path().join("out");
-    let out = caveflow()
-        .arg("run")
-        .arg(dir.path().join("scenario.toml"))
-        .arg("--out")
-        .arg(&out_dir)
-        .output()
-        .unwrap();
+    let out = run_scenario(&dir.path().join("scenario.toml"), &out_dir);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{err}");
     let manifest: serde_json::Value =
@@ -592,4 +580,15 @@ fn massflow_crash_cases() {
     let b = &manifest["mass_balance"];
     assert!(b.is_object(), "{manifest}");
     assert_eq!(b["scheduled_tonnes"], 230.0, "{manifest}");
+}
+
+/// `caveflow run <scenario> --out <out>`, waited for.
+fn run_scenario(scenario: &Path, out: &Path) -> std::process::Output {
+    caveflow()
+        .arg("run")
+        .arg(scenario)
+        .arg("--out")
+        .arg(out)
+        .output()
+        .unwrap()
 }
