@@ -465,6 +465,36 @@ fn a_run_resumed_from_any_checkpoint_is_identical() {
     // ground that caves between two listed periods and a blocked drawpoint's carry.
     let scene = caving_scene();
     let sc = caving_scenario();
+    // With every mechanism on as well, resumed once mid-run: the percolation draws are
+    // keyed by the marker-update count, which the checkpoint must carry.
+    let mut all_on = caving_scenario();
+    all_on.mechanisms.fragmentation = true;
+    all_on.mechanisms.fines = true;
+    all_on.mechanisms.rilling = true;
+    all_on.mechanisms.stress = true;
+    let expected = encoded(&run(&scene, &all_on));
+    let mut mid = None;
+    let _ = Engine::new(&scene, &all_on).unwrap().run_from(
+        0,
+        &mut |_, _| {},
+        &mut |e: &Engine, next: usize| {
+            if next == 3 {
+                mid = Some(e.checkpoint(next, "tag"));
+            }
+            Ok::<(), ()>(())
+        },
+    );
+    let (e, at) = Engine::resume(&scene, &all_on, &mid.unwrap(), "tag").unwrap();
+    let resumed = e
+        .run_from(at, &mut |_, _| {}, &mut |_: &Engine, _: usize| {
+            Ok::<(), ()>(())
+        })
+        .unwrap();
+    assert!(
+        encoded(&resumed) == expected,
+        "mechanisms on: resumed outputs differ"
+    );
+
     let whole = encoded(&run(&scene, &sc));
     let mut checkpoints = Vec::new();
     let out = Engine::new(&scene, &sc)

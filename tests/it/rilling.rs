@@ -343,3 +343,23 @@ fn boundary_section_charts_with_and_without_rilling() {
         assert!(low > 0, "no air gap under the cap");
     }
 }
+
+#[test]
+fn rilling_runs_are_identical_across_thread_counts() {
+    // Rilling is a sequential pass in a fixed order, so the thread count cannot change it.
+    let scene = boundary_scene(false);
+    let sc = scenario(true);
+    let bytes =
+        |o: &RunOutput| bincode::serde::encode_to_vec(o, bincode::config::standard()).unwrap();
+    let outs: Vec<Vec<u8>> = [1, 2]
+        .iter()
+        .map(|&n| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(n)
+                .build()
+                .unwrap();
+            bytes(&pool.install(|| run(&scene, &sc)))
+        })
+        .collect();
+    assert!(outs[0] == outs[1], "1 and 2 threads differ");
+}
