@@ -294,7 +294,7 @@ pub const EXTRACTION: TableSpec = TableSpec {
         f("fines_origin_z", F64, "m", "Mean origin elevation of the drawn fines (finer than the fines cut-off), weighted by fines mass (null when no fines were drawn)", false, &[]),
         f("fines_waste_share", F64, "-", "Share of the drawn fines that is waste per the scenario's waste rule, e.g. fines from the level above (null when no fines were drawn)", false, &[]),
         f("percolation", F64, "m", "Mass-weighted mean distance the drawn material percolated (fines migration) on its way down, beyond its bulk movement (null when no marker was drawn)", false, &[]),
-        f("air_gap", F64, "m3", "Void that reached unflowable ground above this drawpoint's IMZ and is still stored there (air gap)", true, &[]),
+        f("air_gap", F64, "m3", "Void held under uncaved ground above this drawpoint's IMZ (air gap), released when the ground above caves; void reaching the top of the model is surface subsidence, not air", true, &[]),
         f("rilled_share", F64, "-", "Mass share of the drawn material that rilled on the free surface (null when no marker was drawn)", false, &[]),
         f("rill_distance", F64, "m", "Mass-weighted mean horizontal distance the rilled material rilled (null when none rilled)", false, &[]),
         f("status", Str, "-", "ok | short (could not deliver the schedule) | idle", true, &[]),

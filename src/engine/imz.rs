@@ -419,7 +419,8 @@ pub struct Imz {
     /// Per disk, the reach of flowable ground at its level (`Ground::reach`), the most a
     /// disk can widen; NaN until computed, reset when ground caves.
     pub reach: Vec<f64>,
-    /// Void that reached unflowable ground: the air gap above this IMZ, m³.
+    /// Void held under uncaved ground inside the model: the air gap above this IMZ, m³
+    /// (released into the ground above once it caves).
     pub air: f64,
     /// True once the top could not open a new disk.
     pub blocked: bool,
@@ -554,7 +555,12 @@ impl Imz {
             if i == self.disks() {
                 let axis = [self.geom.x, self.geom.y, self.z_mid(i)];
                 if !g.flowable(axis) {
-                    self.air += v;
+                    // Under uncaved ground the void collects as an air gap. Above the top
+                    // of the model lies the free surface: the void is the subsidence the
+                    // markers make there, not air.
+                    if axis[2] < g.blocks.z_max() {
+                        self.air += v;
+                    }
                     self.blocked = true;
                     return;
                 }

@@ -821,9 +821,9 @@ impl<'a> Engine<'a> {
             }
         }
         for imz in &self.imzs {
-            if imz.blocked {
+            if imz.air > 0.0 {
                 self.out.warnings.push(format!(
-                    "drawpoint {}: IMZ reached unflowable ground; {:.3e} m3 of void is still an air gap at the end of the run",
+                    "drawpoint {}: IMZ held under uncaved ground; {:.3e} m3 of void is still an air gap at the end of the run",
                     self.scene.drawpoints.name[imz.id], imz.air
                 ));
             }
