@@ -1621,7 +1621,7 @@ fn scenario_rules() {
 // ---------------------------------------------------------------------------------------
 // The fuzz harness's findings, and a short fuzz run in the suite.
 
-/// Each input that crashed a fuzz target (fuzz/README.md) is kept in
+/// Each input that crashed a fuzz target (tests/fuzz/README.md) is kept in
 /// `tests/data/io/fuzz/` and must now be reported, never panic.
 #[test]
 fn fuzz_regressions() {
@@ -1653,7 +1653,7 @@ fn fuzz_regressions() {
 fn random_bytes_through_every_reader() {
     use proptest::prelude::*;
     use proptest::test_runner::{Config, TestRunner};
-    let seeds = Path::new(env!("CARGO_MANIFEST_DIR")).join("fuzz/corpus-seed");
+    let seeds = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fuzz/corpus-seed");
     let mut inputs: Vec<Vec<u8>> = Vec::new();
     for dir in ["csv_table", "schedule"] {
         for e in fs::read_dir(seeds.join(dir)).unwrap() {
