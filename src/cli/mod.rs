@@ -455,12 +455,15 @@ fn sweep_cmd(mut a: SweepArgs) -> Result<ExitCode> {
     };
     let rows = sweep::sweep(&loaded.scene, &sc, &cfg, &mut |done, total, r| {
         eprintln!(
-            "{done}/{total}: h×{} spacing×{} increment×{}: {:.2} s, grade RMSE {:.3}%{}",
+            "{done}/{total}: h×{} spacing×{} increment×{}: {:.2} s, {} markers, grade RMSE {:.3}%, IMZ width {:.2}%, IEZ height {:.2}%{}",
             r.mult[0],
             r.mult[1],
             r.mult[2],
             r.wall_s,
+            r.markers,
             100.0 * r.grade_rmse,
+            100.0 * r.imz_width_error,
+            100.0 * r.iez_height_error,
             if r.is_reference { " (reference)" } else { "" }
         )
     })?;

@@ -251,6 +251,16 @@ impl<'a> Engine<'a> {
             .max(self.resolution.marker_spacing)
     }
 
+    /// The geometry of every IMZ and a grid over all of them, as a marker update sees them
+    /// (with each IMZ's `motion` of its last interval this makes a [`MotionField`]; for
+    /// benchmarks and tests of the marker pass).
+    pub fn field_parts(&self) -> (Vec<ImzGeom>, ImzGrid) {
+        let geoms: Vec<ImzGeom> = self.imzs.iter().map(|m| m.geom.clone()).collect();
+        let all: Vec<usize> = (0..geoms.len()).collect();
+        let grid = ImzGrid::build(&geoms, &all, self.extent.0, self.extent.1, self.grid_cell());
+        (geoms, grid)
+    }
+
     /// Draws period index `p`.
     pub fn run_period(&mut self, p: usize) {
         let scene = self.scene;
