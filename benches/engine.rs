@@ -9,8 +9,7 @@
 //! - `demo_small_6_periods`: the first 6 monthly periods of the small demo panel, end to end
 //!   (32 drawpoints, 0.4 Mt drawn).
 
-use caveflow::engine::imz::DiskMotion;
-use caveflow::engine::markers::{move_markers, MotionField};
+use caveflow::engine::markers::move_markers;
 use caveflow::engine::Engine;
 use caveflow::model::demo::{self, DemoScale};
 use caveflow::model::synthetic::UniformBox;
@@ -47,28 +46,23 @@ fn marker_pass(c: &mut Criterion) {
         for p in 0..scene.periods.len() {
             e.run_period(p);
         }
-        let (geoms, grid) = e.field_parts();
-        let motion: Vec<&[DiskMotion]> = e.imzs.iter().map(|m| &m.motion[..]).collect();
-        let field = MotionField {
-            geoms: &geoms,
-            motion: &motion,
-            grid: &grid,
-        };
         let n = e.markers.len();
         g.throughput(Throughput::Elements(n as u64));
-        for threads in [1, 2] {
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .unwrap();
-            g.bench_function(format!("{n}_markers/{threads}_threads"), |bench| {
-                bench.iter_batched_ref(
-                    || e.markers.clone(),
-                    |mk| pool.install(|| move_markers(mk, &field, None)),
-                    BatchSize::LargeInput,
-                )
-            });
-        }
+        e.with_last_field(|field| {
+            for threads in [1, 2] {
+                let pool = rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .build()
+                    .unwrap();
+                g.bench_function(format!("{n}_markers/{threads}_threads"), |bench| {
+                    bench.iter_batched_ref(
+                        || e.markers.clone(),
+                        |mk| pool.install(|| move_markers(mk, field, None)),
+                        BatchSize::LargeInput,
+                    )
+                });
+            }
+        });
     }
     g.finish();
 }

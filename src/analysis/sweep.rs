@@ -373,3 +373,49 @@ pub fn keep_periods(scene: &mut Scene, n: usize) {
     let nd = scene.schedule.n_drawpoints;
     scene.schedule.tonnes.truncate(n * nd);
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn row(wall_s: f64, grade_rmse: f64) -> SweepRow {
+        SweepRow {
+            mult: [1.0; 3],
+            resolution: ResolvedResolution::default(),
+            wall_s,
+            markers: 0,
+            grade_rmse,
+            imz_width_error: 0.0,
+            iez_height_error: 0.0,
+            delivered: 1.0,
+            is_default: false,
+            is_reference: false,
+            pareto: false,
+        }
+    }
+
+    #[test]
+    fn pareto_front_keeps_runs_no_other_run_beats_in_both() {
+        let mut rows = vec![
+            row(1.0, 0.05),
+            row(2.0, 0.06), // slower and worse than the first: off
+            row(3.0, 0.01),
+            row(0.5, 0.2),
+            row(3.0, 0.02), // as slow as a better run: off
+            SweepRow {
+                is_reference: true,
+                ..row(10.0, 0.0)
+            },
+        ];
+        mark_pareto(&mut rows);
+        let front: Vec<bool> = rows.iter().map(|r| r.pareto).collect();
+        assert_eq!(front, [true, false, true, true, false, false]);
+    }
+
+    #[test]
+    fn relative_errors_skip_missing_values() {
+        let e = mean_relative(&[1.1, f64::NAN, 2.0], &[1.0, 5.0, 2.0]);
+        assert!((e - 0.05).abs() < 1e-12, "{e}");
+        assert!(mean_relative(&[f64::NAN], &[1.0]).is_nan());
+    }
+}

@@ -251,14 +251,18 @@ impl<'a> Engine<'a> {
             .max(self.resolution.marker_spacing)
     }
 
-    /// The geometry of every IMZ and a grid over all of them, as a marker update sees them
-    /// (with each IMZ's `motion` of its last interval this makes a [`MotionField`]; for
-    /// benchmarks and tests of the marker pass).
-    pub fn field_parts(&self) -> (Vec<ImzGeom>, ImzGrid) {
+    /// Calls `f` with the motion field of every IMZ's last interval, as a marker update
+    /// sees it (for benchmarks and tests of the marker pass).
+    pub fn with_last_field<R>(&self, f: impl FnOnce(&MotionField) -> R) -> R {
         let geoms: Vec<ImzGeom> = self.imzs.iter().map(|m| m.geom.clone()).collect();
         let all: Vec<usize> = (0..geoms.len()).collect();
         let grid = ImzGrid::build(&geoms, &all, self.extent.0, self.extent.1, self.grid_cell());
-        (geoms, grid)
+        let motion: Vec<&[DiskMotion]> = self.imzs.iter().map(|m| &m.motion[..]).collect();
+        f(&MotionField {
+            geoms: &geoms,
+            motion: &motion,
+            grid: &grid,
+        })
     }
 
     /// Draws period index `p`.

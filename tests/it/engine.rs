@@ -1054,8 +1054,7 @@ fn imzs_at_walls_stay_in_the_model_and_draw_their_schedule() {
 /// work and drawn rows, bit for bit.
 #[test]
 fn fused_marker_pass_matches_the_two_pass_path() {
-    use caveflow::engine::imz::DiskMotion;
-    use caveflow::engine::markers::{move_markers, Markers, MotionField, Step};
+    use caveflow::engine::markers::{move_markers, Markers, Step};
     let b = UniformBox {
         periods: 3,
         ..UniformBox::castro_isolated()
@@ -1066,17 +1065,14 @@ fn fused_marker_pass_matches_the_two_pass_path() {
     for p in 0..scene.periods.len() {
         e.run_period(p);
     }
-    let (geoms, grid) = e.field_parts();
-    let motion: Vec<&[DiskMotion]> = e.imzs.iter().map(|m| &m.motion[..]).collect();
-    let field = MotionField {
-        geoms: &geoms,
-        motion: &motion,
-        grid: &grid,
-    };
     let (mut fused, mut two) = (e.markers.clone(), e.markers.clone());
     let noop = |_: &Markers, _: usize, _: &mut Step| {};
-    let drawn_fused = move_markers(&mut fused, &field, None);
-    let drawn_two = move_markers(&mut two, &field, Some(&noop));
+    let (drawn_fused, drawn_two) = e.with_last_field(|field| {
+        (
+            move_markers(&mut fused, field, None),
+            move_markers(&mut two, field, Some(&noop)),
+        )
+    });
     eprintln!("{} markers, {} drawn", fused.len(), drawn_fused.len());
     assert!(fused.len() > 1000 && !drawn_fused.is_empty());
     assert_eq!(drawn_fused, drawn_two);
