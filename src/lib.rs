@@ -9,6 +9,7 @@
 //! [`cli`]. No module reaches back up.
 #![warn(missing_docs)]
 
+pub mod analysis;
 pub mod cli;
 pub mod engine;
 pub mod io;

@@ -509,6 +509,30 @@ pub const SURFACE: TableSpec = TableSpec {
     extra: None,
 };
 
+/// The speed–accuracy sweep (`caveflow sweep`).
+pub const SWEEP: TableSpec = TableSpec {
+    name: "sweep",
+    description: "One run of the speed–accuracy sweep: a resolution (as multipliers of the scene's default), its wall time, and its errors against the converged reference run.",
+    fields: &[
+        f("h_mult", F64, "-", "Disk thickness h as a multiple of the default", true, &[]),
+        f("spacing_mult", F64, "-", "Marker spacing as a multiple of the default", true, &[]),
+        f("increment_mult", F64, "-", "Draw increment as a multiple of the default", true, &[]),
+        f("layer_thickness", F64, "m", "Disk thickness h run", true, &[]),
+        f("marker_spacing", F64, "m", "Marker spacing run", true, &[]),
+        f("draw_increment", F64, "t", "Draw increment run", true, &[]),
+        f("wall_s", F64, "s", "Wall time of the run (median over the repeats)", true, &[]),
+        f("markers", I64, "-", "Markers mobilised", true, &[]),
+        f("grade_rmse", F64, "-", "RMSE of the first grade over drawpoint-periods against the reference, divided by the reference's mean grade (0.01 = 1%)", true, &[]),
+        f("imz_width_error", F64, "-", "Mean relative error over drawpoints of the widest IMZ disk (2 R) at the last period", true, &[]),
+        f("iez_height_error", F64, "-", "Mean relative error over drawpoints of the IEZ height (95th percentile of drawn origin heights above the drawpoint)", true, &[]),
+        f("delivered", F64, "-", "Credited / scheduled tonnes", true, &[]),
+        f("is_default", I64, "-", "1 for the default resolution", true, &[]),
+        f("is_reference", I64, "-", "1 for the converged reference run (its errors are 0 by definition)", true, &[]),
+        f("pareto", I64, "-", "1 when no other run is both faster and has a smaller grade_rmse", true, &[]),
+    ],
+    extra: None,
+};
+
 /// Every table, for `caveflow schema`.
 pub const ALL: &[TableSpec] = &[
     BLOCK_MODEL,
@@ -526,6 +550,7 @@ pub const ALL: &[TableSpec] = &[
     STRESS_SECTIONS,
     STRESS_LEVELS,
     MANIFEST,
+    SWEEP,
 ];
 
 /// Look a table up by name.

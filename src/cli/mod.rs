@@ -42,6 +42,9 @@ pub enum Command {
     /// Write the synthetic Henderson-style demo panel (block model, drawpoints, periods,
     /// schedule, scenario.toml).
     Demo(DemoArgs),
+    /// The speed–accuracy sweep: run one scene at a grid of resolutions around the default
+    /// and a converged reference; write sweep.parquet and sweep.png (error against time).
+    Sweep(SweepArgs),
 }
 
 /// Where the inputs come from: a scenario file, or the tables directly.
@@ -128,6 +131,35 @@ pub struct DemoArgs {
     pub seed: u64,
 }
 
+/// `caveflow sweep`.
+#[derive(Debug, Args)]
+pub struct SweepArgs {
+    /// Inputs (default: data/scenario.toml, the demo).
+    #[command(flatten)]
+    pub input: InputArgs,
+    /// Output directory for sweep.parquet and sweep.png.
+    #[arg(long, default_value = "sweep")]
+    pub out: PathBuf,
+    /// Keep only the first N periods of the schedule (a shorter scene for a quicker sweep).
+    #[arg(long, value_name = "N")]
+    pub keep_periods: Option<usize>,
+    /// Multipliers of the default disk thickness h.
+    #[arg(long, value_delimiter = ',', default_values_t = [2.0, 1.0, 0.5])]
+    pub h: Vec<f64>,
+    /// Multipliers of the default marker spacing.
+    #[arg(long, value_delimiter = ',', default_values_t = [2.0, 1.0, 0.5])]
+    pub spacing: Vec<f64>,
+    /// Multipliers of the default draw increment.
+    #[arg(long, value_delimiter = ',', default_values_t = [4.0, 1.0, 0.25])]
+    pub increment: Vec<f64>,
+    /// Multipliers h,spacing,increment of the converged reference run.
+    #[arg(long, value_delimiter = ',', num_args = 3, default_values_t = [0.5, 0.5, 0.25])]
+    pub reference: Vec<f64>,
+    /// Runs per point (the median wall time is kept).
+    #[arg(long, default_value_t = 1)]
+    pub repeats: usize,
+}
+
 /// Parses the command line and runs it.
 pub fn main() -> Result<ExitCode> {
     let cli = Cli::parse();
@@ -136,6 +168,7 @@ pub fn main() -> Result<ExitCode> {
         Command::Validate(a) => validate(a),
         Command::Schema(a) => schema_cmd(a),
         Command::Demo(a) => demo_cmd(a),
+        Command::Sweep(a) => sweep_cmd(a),
     };
     match r {
         // A bad scenario is invalid input, like a bad table: exit 1 (the problem names the
@@ -398,5 +431,52 @@ fn demo_cmd(a: DemoArgs) -> Result<ExitCode> {
         "run it with: caveflow run {}",
         Path::new(&a.out).join("scenario.toml").display()
     );
+    Ok(ExitCode::SUCCESS)
+}
+
+fn sweep_cmd(mut a: SweepArgs) -> Result<ExitCode> {
+    use crate::analysis::sweep::{self, SweepConfig};
+    if a.input.scenario.is_none() && a.input.blocks.is_none() {
+        a.input.scenario = Some(PathBuf::from("data/scenario.toml"));
+    }
+    let sc = scenario(&a.input)?;
+    let Some(mut loaded) = load(&sc) else {
+        return Ok(ExitCode::from(1));
+    };
+    if let Some(n) = a.keep_periods {
+        sweep::keep_periods(&mut loaded.scene, n);
+    }
+    let cfg = SweepConfig {
+        h: a.h,
+        spacing: a.spacing,
+        increment: a.increment,
+        reference: [a.reference[0], a.reference[1], a.reference[2]],
+        repeats: a.repeats,
+    };
+    let rows = sweep::sweep(&loaded.scene, &sc, &cfg, &mut |done, total, r| {
+        eprintln!(
+            "{done}/{total}: h×{} spacing×{} increment×{}: {:.2} s, {} markers, grade RMSE {:.3}%, IMZ width {:.2}%, IEZ height {:.2}%{}",
+            r.mult[0],
+            r.mult[1],
+            r.mult[2],
+            r.wall_s,
+            r.markers,
+            100.0 * r.grade_rmse,
+            100.0 * r.imz_width_error,
+            100.0 * r.iez_height_error,
+            if r.is_reference { " (reference)" } else { "" }
+        )
+    })?;
+    std::fs::create_dir_all(&a.out).with_context(|| a.out.display().to_string())?;
+    let table = a.out.join("sweep.parquet");
+    let chart = a.out.join("sweep.png");
+    sweep::write_sweep(&table, &rows)?;
+    let title = format!(
+        "Speed and accuracy: {} drawpoints, {} periods",
+        loaded.scene.drawpoints.len(),
+        loaded.scene.periods.len()
+    );
+    sweep::write_sweep_chart(&chart, &rows, &title)?;
+    println!("wrote {} and {}", table.display(), chart.display());
     Ok(ExitCode::SUCCESS)
 }

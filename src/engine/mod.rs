@@ -251,6 +251,22 @@ impl<'a> Engine<'a> {
             .max(self.resolution.marker_spacing)
     }
 
+    /// Calls `f` with the motion field of every IMZ's last interval, as a marker update
+    /// sees it (for benchmarks and tests of the marker pass).
+    pub fn with_last_field<R>(&self, f: impl FnOnce(&MotionField) -> R) -> R {
+        let geoms: Vec<ImzGeom> = self.imzs.iter().map(|m| m.geom.clone()).collect();
+        let all: Vec<usize> = (0..geoms.len()).collect();
+        let grid = ImzGrid::build(&geoms, &all, self.extent.0, self.extent.1, self.grid_cell());
+        let motion: Vec<&[DiskMotion]> = self.imzs.iter().map(|m| &m.motion[..]).collect();
+        let last = self.scene.periods.id.last().copied().unwrap_or(0);
+        f(&MotionField {
+            geoms: &geoms,
+            motion: &motion,
+            grid: &grid,
+            ground: Some((&self.scene.blocks, last)),
+        })
+    }
+
     /// Draws period index `p`.
     pub fn run_period(&mut self, p: usize) {
         let scene = self.scene;

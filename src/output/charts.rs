@@ -28,8 +28,10 @@
 //! pair of axes across a grid of small panels instead of a tangle of lines on one plot.
 
 mod stability;
+mod sweep;
 
 pub use self::stability::{stability_chart, RegionBand};
+pub use self::sweep::{sweep_chart, SweepPoint};
 
 use std::cmp::Ordering;
 use std::collections::BTreeMap;

@@ -1114,3 +1114,43 @@ fn draw_beside_a_wall_leaves_no_void_along_it() {
         "a void opened along the wall: {wall} vs mean {mean}"
     );
 }
+
+/// The marker pass without a hook (one fused pass) moves every marker exactly as the
+/// two-pass path taken with a hook does, when the hook adds nothing: same positions, strains,
+/// work and drawn rows, bit for bit.
+#[test]
+fn fused_marker_pass_matches_the_two_pass_path() {
+    use caveflow::engine::markers::{move_markers, Markers, Step};
+    let b = UniformBox {
+        periods: 3,
+        ..UniformBox::castro_isolated()
+    };
+    let scene = b.scene();
+    let sc = scenario(0.025, 0.0125, 0.01);
+    let mut e = Engine::new(&scene, &sc).unwrap();
+    for p in 0..scene.periods.len() {
+        e.run_period(p);
+    }
+    let (mut fused, mut two) = (e.markers.clone(), e.markers.clone());
+    let noop = |_: &Markers, _: usize, _: &mut Step| {};
+    let (drawn_fused, drawn_two) = e.with_last_field(|field| {
+        (
+            move_markers(&mut fused, field, None),
+            move_markers(&mut two, field, Some(&noop)),
+        )
+    });
+    eprintln!("{} markers, {} drawn", fused.len(), drawn_fused.len());
+    assert!(fused.len() > 1000 && !drawn_fused.is_empty());
+    assert_eq!(drawn_fused, drawn_two);
+    let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    for (a, b) in [
+        (&fused.x, &two.x),
+        (&fused.y, &two.y),
+        (&fused.z, &two.z),
+        (&fused.strain, &two.strain),
+        (&fused.work, &two.work),
+    ] {
+        assert_eq!(bits(a), bits(b));
+    }
+    assert_ne!(bits(&fused.z), bits(&e.markers.z), "the pass moved nothing");
+}

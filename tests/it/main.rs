@@ -9,3 +9,4 @@ mod props;
 mod rilling;
 mod stability;
 mod stress;
+mod sweep;

@@ -73,21 +73,28 @@ fn frac(b: &RegionBand, v: f64) -> f64 {
     t.clamp(0.0, 1.0)
 }
 
+/// Ticks of a log axis over [lo, hi]: the decades and their 2 and 5.
+pub(super) fn log_ticks(lo: f64, hi: f64) -> Vec<(f64, String)> {
+    let mut out = Vec::new();
+    let mut k = lo.log10().floor() as i32;
+    while 10f64.powi(k) <= hi * (1.0 + 1e-9) {
+        for m in [1.0, 2.0, 5.0] {
+            let v = m * 10f64.powi(k);
+            if v >= lo * (1.0 - 1e-9) && v <= hi * (1.0 + 1e-9) {
+                out.push((v, format!("{}", (v * 1e6).round() / 1e6)));
+            }
+        }
+        k += 1;
+    }
+    out
+}
+
 /// Tick values of a band: decades and their 2 and 5 on a log axis, ~8 on a linear one.
 fn ticks(b: &RegionBand) -> Vec<(f64, String)> {
     let (lo, hi) = b.range;
     let mut out = Vec::new();
     if b.log {
-        let mut k = lo.log10().floor() as i32;
-        while 10f64.powi(k) <= hi * (1.0 + 1e-9) {
-            for m in [1.0, 2.0, 5.0] {
-                let v = m * 10f64.powi(k);
-                if v >= lo * (1.0 - 1e-9) && v <= hi * (1.0 + 1e-9) {
-                    out.push((v, format!("{}", (v * 1e6).round() / 1e6)));
-                }
-            }
-            k += 1;
-        }
+        out = log_ticks(lo, hi);
     } else {
         // 1, 2 or 5 × 10^k, about ten ticks.
         let raw = (hi - lo) / 10.0;

@@ -1,0 +1,421 @@
+//! The speed–accuracy sweep (DESIGN §9): one scene run at a grid of resolutions around the
+//! default, each timed and compared with a converged reference run.
+//!
+//! A resolution is given as multipliers of the default one ([`resolution::resolve`]): of the
+//! disk thickness h, of the marker spacing and of the draw increment. Each point of the full
+//! factorial grid is run once (or `repeats` times, keeping the median wall time), and so is
+//! the reference. The errors against the reference are:
+//!
+//! - **grade RMSE**: the root mean square difference of the first grade over every
+//!   drawpoint-period that both runs drew from, divided by the reference's mean grade over the
+//!   same rows (a relative error: 0.01 is 1%);
+//! - **IMZ width**: per drawpoint, the widest disk (2 R) at the last period; the mean relative
+//!   difference over drawpoints;
+//! - **IEZ height**: per drawpoint, the 95th percentile of the drawn markers' origin heights
+//!   above the drawpoint (the extent of the isolated extraction zone); the mean relative
+//!   difference over drawpoints.
+//!
+//! # Why the reference is a run, not a limit
+//! REBOP has no closed form to compare against. Halving h and the spacing and quartering
+//! the increment is the finest that runs in minutes on the demo; the errors measured are
+//! therefore distances to that run, and read as upper bounds of convergence only as far as the
+//! reference itself has converged (the sweep shows how fast they shrink towards it).
+//!
+//! Every run is made with `flow.enforce_stability = false`: the coarse and fine corners of the
+//! grid are studies of the method, never predictions, and may fall outside where it holds.
+
+use std::collections::HashMap;
+use std::path::Path;
+use std::time::Instant;
+
+use crate::engine::result::{ResolvedResolution, RunOutput};
+use crate::engine::{resolution, Engine, EngineError};
+use crate::model::{Scenario, Scene};
+use crate::output::charts::{sweep_chart, ChartError, SweepPoint};
+use crate::output::run::{f64s, i64s, write_table};
+use crate::output::OutputError;
+use crate::schema::SWEEP;
+
+/// Which resolutions to run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SweepConfig {
+    /// Multipliers of the default disk thickness h.
+    pub h: Vec<f64>,
+    /// Multipliers of the default marker spacing.
+    pub spacing: Vec<f64>,
+    /// Multipliers of the default draw increment.
+    pub increment: Vec<f64>,
+    /// Multipliers (h, spacing, increment) of the converged reference.
+    pub reference: [f64; 3],
+    /// Runs per point; the median wall time is kept (the outputs are deterministic).
+    pub repeats: usize,
+}
+
+impl Default for SweepConfig {
+    fn default() -> Self {
+        SweepConfig {
+            h: vec![2.0, 1.0, 0.5],
+            spacing: vec![2.0, 1.0, 0.5],
+            increment: vec![4.0, 1.0, 0.25],
+            reference: [0.5, 0.5, 0.25],
+            repeats: 1,
+        }
+    }
+}
+
+/// One run of the sweep.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SweepRow {
+    /// Multipliers of the default (h, spacing, increment).
+    pub mult: [f64; 3],
+    /// The resolution run.
+    pub resolution: ResolvedResolution,
+    /// Median wall time, s.
+    pub wall_s: f64,
+    /// Markers mobilised.
+    pub markers: u64,
+    /// Relative grade RMSE over drawpoint-periods (0.01 = 1%).
+    pub grade_rmse: f64,
+    /// Mean relative error of the widest IMZ disk per drawpoint.
+    pub imz_width_error: f64,
+    /// Mean relative error of the IEZ height (95th percentile origin height) per drawpoint.
+    pub iez_height_error: f64,
+    /// Credited / scheduled tonnes.
+    pub delivered: f64,
+    /// This is the default resolution.
+    pub is_default: bool,
+    /// This is the reference run.
+    pub is_reference: bool,
+    /// On the Pareto front of wall time against grade RMSE.
+    pub pareto: bool,
+}
+
+/// Errors of a sweep.
+#[derive(Debug, thiserror::Error)]
+pub enum SweepError {
+    /// A run could not start.
+    #[error("run at multipliers {mult:?}: {source}")]
+    Engine {
+        /// Multipliers of the run.
+        mult: [f64; 3],
+        /// Cause.
+        source: EngineError,
+    },
+    /// Writing the table failed.
+    #[error(transparent)]
+    Output(#[from] OutputError),
+    /// Drawing the chart failed.
+    #[error(transparent)]
+    Chart(#[from] ChartError),
+}
+
+/// Runs the scene at `mult` times the default resolution, `repeats` times; returns the
+/// output of the last run and the median wall time.
+fn run_at(
+    scene: &Scene,
+    base: &Scenario,
+    default: &ResolvedResolution,
+    mult: [f64; 3],
+    repeats: usize,
+) -> Result<(RunOutput, f64), SweepError> {
+    let mut sc = base.clone();
+    sc.resolution.layer_thickness = Some(default.layer_thickness * mult[0]);
+    sc.resolution.marker_spacing = Some(default.marker_spacing * mult[1]);
+    sc.resolution.draw_increment = Some(default.draw_increment * mult[2]);
+    sc.flow.enforce_stability = false;
+    let mut times = Vec::new();
+    let mut last = None;
+    for _ in 0..repeats.max(1) {
+        let t = Instant::now();
+        let out = Engine::new(scene, &sc)
+            .map_err(|source| SweepError::Engine { mult, source })?
+            .run(&mut |_, _| {});
+        times.push(t.elapsed().as_secs_f64());
+        last = Some(out);
+    }
+    times.sort_by(f64::total_cmp);
+    let median = times[times.len() / 2];
+    Ok((last.expect("at least one run"), median))
+}
+
+/// Per drawpoint, the widest disk (2 R) at the last period in the IMZ table.
+fn imz_widths(out: &RunOutput, n_dp: usize) -> Vec<f64> {
+    let t = &out.imz;
+    let last = t.period.iter().copied().max().unwrap_or(0);
+    let mut w = vec![0.0f64; n_dp];
+    for i in 0..t.period.len() {
+        if t.period[i] == last {
+            let d = t.drawpoint[i] as usize;
+            w[d] = w[d].max(2.0 * t.radius[i]);
+        }
+    }
+    w
+}
+
+/// Per drawpoint, the 95th percentile of drawn origin heights above the drawpoint (NaN if
+/// it drew nothing).
+fn iez_heights(out: &RunOutput, scene: &Scene) -> Vec<f64> {
+    let n_dp = scene.drawpoints.len();
+    let mut heights = vec![Vec::new(); n_dp];
+    let t = &out.drawn;
+    for i in 0..t.drawpoint.len() {
+        let d = t.drawpoint[i] as usize;
+        if d < n_dp {
+            heights[d].push(t.origin_z[i] - scene.drawpoints.z[d]);
+        }
+    }
+    heights
+        .into_iter()
+        .map(|mut v| {
+            if v.is_empty() {
+                return f64::NAN;
+            }
+            v.sort_by(f64::total_cmp);
+            v[((v.len() - 1) as f64 * 0.95).round() as usize]
+        })
+        .collect()
+}
+
+/// Mean of |a − r| / |r| over the pairs where both are finite and r is not zero.
+fn mean_relative(a: &[f64], r: &[f64]) -> f64 {
+    let (sum, n) = a
+        .iter()
+        .zip(r)
+        .filter(|(a, r)| a.is_finite() && r.is_finite() && **r != 0.0)
+        .fold((0.0, 0usize), |(s, n), (a, r)| {
+            (s + ((a - r) / r).abs(), n + 1)
+        });
+    if n == 0 {
+        f64::NAN
+    } else {
+        sum / n as f64
+    }
+}
+
+/// Relative RMSE of the first grade over the drawpoint-periods both runs drew from.
+fn grade_rmse(out: &RunOutput, reference: &RunOutput) -> f64 {
+    let (Some(g), Some(gr)) = (
+        out.extraction.grades.first(),
+        reference.extraction.grades.first(),
+    ) else {
+        return f64::NAN;
+    };
+    let key = |e: &crate::engine::result::Extraction, i: usize| (e.drawpoint[i], e.period[i]);
+    let rows: HashMap<(u32, i64), usize> = (0..out.extraction.period.len())
+        .map(|i| (key(&out.extraction, i), i))
+        .collect();
+    let (mut sq, mut sum, mut n) = (0.0, 0.0, 0usize);
+    for j in 0..reference.extraction.period.len() {
+        let Some(&i) = rows.get(&key(&reference.extraction, j)) else {
+            continue;
+        };
+        if g[i].is_finite() && gr[j].is_finite() {
+            sq += (g[i] - gr[j]).powi(2);
+            sum += gr[j];
+            n += 1;
+        }
+    }
+    if n == 0 || sum == 0.0 {
+        return f64::NAN;
+    }
+    (sq / n as f64).sqrt() / (sum / n as f64).abs()
+}
+
+/// Marks the rows on the Pareto front of wall time against grade RMSE: no other row is both
+/// faster and more accurate. The reference (error 0 by definition) is left off.
+fn mark_pareto(rows: &mut [SweepRow]) {
+    let mut order: Vec<usize> = (0..rows.len())
+        .filter(|&i| !rows[i].is_reference && rows[i].grade_rmse.is_finite())
+        .collect();
+    order.sort_by(|&a, &b| {
+        rows[a]
+            .wall_s
+            .total_cmp(&rows[b].wall_s)
+            .then(rows[a].grade_rmse.total_cmp(&rows[b].grade_rmse))
+    });
+    let mut best = f64::INFINITY;
+    for i in order {
+        rows[i].pareto = rows[i].grade_rmse < best;
+        best = best.min(rows[i].grade_rmse);
+    }
+}
+
+/// Runs the sweep. `progress(done, total, row)` is called after each run.
+pub fn sweep(
+    scene: &Scene,
+    base: &Scenario,
+    cfg: &SweepConfig,
+    progress: &mut dyn FnMut(usize, usize, &SweepRow),
+) -> Result<Vec<SweepRow>, SweepError> {
+    let default = resolution::resolve(scene, base);
+    let mut grid = vec![cfg.reference];
+    for &h in &cfg.h {
+        for &s in &cfg.spacing {
+            for &i in &cfg.increment {
+                let m = [h, s, i];
+                if !grid.contains(&m) {
+                    grid.push(m);
+                }
+            }
+        }
+    }
+    if !grid.contains(&[1.0; 3]) {
+        grid.push([1.0; 3]);
+    }
+    let n_dp = scene.drawpoints.len();
+    let total = grid.len();
+    let (reference, ref_wall) = run_at(scene, base, &default, cfg.reference, cfg.repeats)?;
+    let ref_w = imz_widths(&reference, n_dp);
+    let ref_h = iez_heights(&reference, scene);
+    let mut rows = Vec::with_capacity(total);
+    for (k, &mult) in grid.iter().enumerate() {
+        let row = if k == 0 {
+            row_of(mult, &reference, ref_wall, 0.0, 0.0, 0.0)
+        } else {
+            let (out, wall) = run_at(scene, base, &default, mult, cfg.repeats)?;
+            let e_grade = grade_rmse(&out, &reference);
+            let e_w = mean_relative(&imz_widths(&out, n_dp), &ref_w);
+            let e_h = mean_relative(&iez_heights(&out, scene), &ref_h);
+            row_of(mult, &out, wall, e_grade, e_w, e_h)
+        };
+        let row = SweepRow {
+            is_reference: k == 0,
+            ..row
+        };
+        progress(k + 1, total, &row);
+        rows.push(row);
+    }
+    mark_pareto(&mut rows);
+    Ok(rows)
+}
+
+fn row_of(
+    mult: [f64; 3],
+    out: &RunOutput,
+    wall_s: f64,
+    grade_rmse: f64,
+    imz_width_error: f64,
+    iez_height_error: f64,
+) -> SweepRow {
+    let b = &out.balance;
+    SweepRow {
+        mult,
+        resolution: out.resolution,
+        wall_s,
+        markers: b.markers_mobilised,
+        grade_rmse,
+        imz_width_error,
+        iez_height_error,
+        delivered: if b.scheduled_tonnes > 0.0 {
+            b.credited_tonnes / b.scheduled_tonnes
+        } else {
+            f64::NAN
+        },
+        is_default: mult == [1.0; 3],
+        is_reference: false,
+        pareto: false,
+    }
+}
+
+/// Writes the sweep table (`schemas/sweep.json`) to `path` (Parquet, atomically).
+pub fn write_sweep(path: &Path, rows: &[SweepRow]) -> Result<(), OutputError> {
+    let col = |f: &dyn Fn(&SweepRow) -> f64| f64s(rows.iter().map(f).collect());
+    let flag = |f: &dyn Fn(&SweepRow) -> bool| i64s(rows.iter().map(|r| f(r) as i64).collect());
+    let fixed = vec![
+        ("h_mult", col(&|r| r.mult[0])),
+        ("spacing_mult", col(&|r| r.mult[1])),
+        ("increment_mult", col(&|r| r.mult[2])),
+        ("layer_thickness", col(&|r| r.resolution.layer_thickness)),
+        ("marker_spacing", col(&|r| r.resolution.marker_spacing)),
+        ("draw_increment", col(&|r| r.resolution.draw_increment)),
+        ("wall_s", col(&|r| r.wall_s)),
+        (
+            "markers",
+            i64s(rows.iter().map(|r| r.markers as i64).collect()),
+        ),
+        ("grade_rmse", col(&|r| r.grade_rmse)),
+        ("imz_width_error", col(&|r| r.imz_width_error)),
+        ("iez_height_error", col(&|r| r.iez_height_error)),
+        ("delivered", col(&|r| r.delivered)),
+        ("is_default", flag(&|r| r.is_default)),
+        ("is_reference", flag(&|r| r.is_reference)),
+        ("pareto", flag(&|r| r.pareto)),
+    ];
+    write_table(path, &SWEEP, fixed, Vec::new())
+}
+
+/// Draws error against time (`.png` or `.svg`), atomically.
+pub fn write_sweep_chart(path: &Path, rows: &[SweepRow], title: &str) -> Result<(), ChartError> {
+    let points: Vec<SweepPoint> = rows
+        .iter()
+        .filter(|r| !r.is_reference)
+        .map(|r| SweepPoint {
+            wall_s: r.wall_s,
+            error: r.grade_rmse,
+            label: format!("{}/{}/{}", r.mult[0], r.mult[1], r.mult[2]),
+            pareto: r.pareto,
+            is_default: r.is_default,
+        })
+        .collect();
+    let ref_wall = rows
+        .iter()
+        .find(|r| r.is_reference)
+        .map_or(f64::NAN, |r| r.wall_s);
+    sweep_chart(path, &points, ref_wall, title)
+}
+
+/// Keeps only the first `n` periods of the scene (a shorter scene for a quicker sweep).
+pub fn keep_periods(scene: &mut Scene, n: usize) {
+    let n = n.min(scene.periods.len());
+    scene.periods.id.truncate(n);
+    scene.periods.name.truncate(n);
+    scene.periods.days.truncate(n);
+    let nd = scene.schedule.n_drawpoints;
+    scene.schedule.tonnes.truncate(n * nd);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn row(wall_s: f64, grade_rmse: f64) -> SweepRow {
+        SweepRow {
+            mult: [1.0; 3],
+            resolution: ResolvedResolution::default(),
+            wall_s,
+            markers: 0,
+            grade_rmse,
+            imz_width_error: 0.0,
+            iez_height_error: 0.0,
+            delivered: 1.0,
+            is_default: false,
+            is_reference: false,
+            pareto: false,
+        }
+    }
+
+    #[test]
+    fn pareto_front_keeps_runs_no_other_run_beats_in_both() {
+        let mut rows = vec![
+            row(1.0, 0.05),
+            row(2.0, 0.06), // slower and worse than the first: off
+            row(3.0, 0.01),
+            row(0.5, 0.2),
+            row(3.0, 0.02), // as slow as a better run: off
+            SweepRow {
+                is_reference: true,
+                ..row(10.0, 0.0)
+            },
+        ];
+        mark_pareto(&mut rows);
+        let front: Vec<bool> = rows.iter().map(|r| r.pareto).collect();
+        assert_eq!(front, [true, false, true, true, false, false]);
+    }
+
+    #[test]
+    fn relative_errors_skip_missing_values() {
+        let e = mean_relative(&[1.1, f64::NAN, 2.0], &[1.0, 5.0, 2.0]);
+        assert!((e - 0.05).abs() < 1e-12, "{e}");
+        assert!(mean_relative(&[f64::NAN], &[1.0]).is_nan());
+    }
+}
