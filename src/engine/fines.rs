@@ -222,6 +222,22 @@ mod tests {
     /// spread sqrt(VMR L̄) of the formula. VMR = 0.01 m gives a Gamma shape of 0.39, so the
     /// standard errors are 0.5 % (mean) and 0.7 % (standard deviation); tolerances 3 % and
     /// 4 %.
+    /// A disk of radius r (unchanged since the last update) with 0.5 m³ of void passed in,
+    /// w = 10 m, d̄ = 0.1 m, in open ground.
+    fn disk(r: f64) -> DiskMotion {
+        DiskMotion {
+            r,
+            r_old: r,
+            dv: 0.5,
+            w: 10.0,
+            jump: 0.1,
+            n1: 0.45,
+            sigma_n: 50.0,
+            d: 0.1,
+            area_frac: 1.0,
+        }
+    }
+
     #[test]
     fn percolated_distances_over_many_markers_match_the_formula() {
         let geom = ImzGeom {
@@ -231,19 +247,7 @@ mod tests {
             h: 1.0,
             radius: vec![4.0; 200],
         };
-        let motion: Vec<DiskMotion> = (0..200)
-            .map(|_| DiskMotion {
-                r: 4.0,
-                r_old: 4.0,
-                dv: 0.5,
-                w: 10.0,
-                jump: 0.1,
-                n1: 0.45,
-                sigma_n: 50.0,
-                d: 0.1,
-                area_frac: 1.0,
-            })
-            .collect();
+        let motion: Vec<DiskMotion> = (0..200).map(|_| disk(4.0)).collect();
         let geoms = vec![geom];
         let grid = ImzGrid::build(&geoms, &[0], [-5.0, -5.0], [10.0, 10.0], 1.0);
         let motion_ref: Vec<&[DiskMotion]> = vec![&motion[..]];
@@ -300,21 +304,7 @@ mod tests {
             h: 1.0,
             radius: vec![1.0, 2.0, 4.0, 4.0],
         };
-        let motion: Vec<DiskMotion> = geom
-            .radius
-            .iter()
-            .map(|&r| DiskMotion {
-                r,
-                r_old: r,
-                dv: 0.5,
-                w: 10.0,
-                jump: 0.1,
-                n1: 0.45,
-                sigma_n: 50.0,
-                d: 0.1,
-                area_frac: 1.0,
-            })
-            .collect();
+        let motion: Vec<DiskMotion> = geom.radius.iter().map(|&r| disk(r)).collect();
         let grid = ImzGrid::build(&[geom.clone()], &[0], [-5.0, -5.0], [10.0, 10.0], 1.0);
         (vec![geom], motion, grid)
     }

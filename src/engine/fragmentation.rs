@@ -115,6 +115,17 @@ pub fn primary_size(bm: &BlockModel, b: usize, seed: u64, id: u64) -> f64 {
     }
 }
 
+/// Fragment size a newly mobilised marker carries: its [`primary_size`] when markers are
+/// sized (a size mechanism is on), else its block's mean size (so a run without the
+/// mechanisms samples nothing).
+pub fn initial_size(bm: &BlockModel, b: usize, seed: u64, id: u64, sized: bool) -> f64 {
+    if sized {
+        primary_size(bm, b, seed, id)
+    } else {
+        bm.frag[b]
+    }
+}
+
 /// Bridgwater's attrited mass fraction W = min(1, K_N (σ_N Γ^φ / σ_t)^β) from the
 /// accumulated strain Σ Γ and work Σ Γ σ_n (kPa), σ_N = work / strain; 0 without strain or
 /// strength.

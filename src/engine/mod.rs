@@ -390,13 +390,7 @@ impl<'a> Engine<'a> {
     /// One rilling step on the free surface (`rilling::rill`).
     fn rill(&mut self, period: i64) {
         let (bm, seed, sized) = (&self.scene.blocks, self.scenario.seed, self.sized());
-        let size = move |b: usize, id: u64| {
-            if sized {
-                fragmentation::primary_size(bm, b, seed, id)
-            } else {
-                bm.frag[b]
-            }
-        };
+        let size = move |b: usize, id: u64| fragmentation::initial_size(bm, b, seed, id, sized);
         let mut st = rilling::RillState {
             lattice: &self.lattice,
             blocks: &self.scene.blocks,
@@ -597,11 +591,7 @@ impl<'a> Engine<'a> {
             }
             self.engulfed[id] = true;
             self.engulfed_mass[b] += self.marker_mass[b];
-            let d0 = if sized {
-                fragmentation::primary_size(bm, b, seed, id as u64)
-            } else {
-                bm.frag[b]
-            };
+            let d0 = fragmentation::initial_size(bm, b, seed, id as u64, sized);
             self.markers
                 .push(id as u64, p, self.marker_mass[b], b as u32, d0);
         }
