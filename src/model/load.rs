@@ -31,6 +31,12 @@
 //! - Lithologies are numbered in order of first appearance (one lithology `default` when the
 //!   column is absent). Every extra numeric column is a grade, in % by mass.
 //!
+//! # Calibration
+//! The scenario's `[calibration]` factors ([`Calibration::apply`](crate::model::scenario::Calibration::apply))
+//! are applied to the block model once it breaks no rule. A factor that takes a block out
+//! of range, or a `frag_factor` lithology the block model does not have, is
+//! `calibration-range`, reported against the block model file.
+//!
 //! # Drawpoints
 //! Two openings must not intersect (`overlapping-openings`). Opening width = the
 //! drawpoint's `width`, else that of its drawbell (its `drawbell` id,
@@ -115,7 +121,26 @@ pub fn load_scene(sc: &Scenario) -> Result<LoadedScene, Problems> {
     let periods = i.periods.as_ref().map(|p| l.read("periods", p, &PERIODS));
     let schedule = l.read_schedule(&i.schedule);
 
-    let blocks = blocks.and_then(|t| l.block_model(&t));
+    let blocks = blocks.and_then(|t| {
+        let before = l.problems.total();
+        let mut m = l.block_model(&t)?;
+        // The scenario's calibration, on a block model that broke no rule (its factors are
+        // checked against the values they scale).
+        if l.problems.total() == before {
+            if let Err(e) = sc.calibration.apply_located(&mut m) {
+                let row = e.block.map(|b| t.row(b));
+                let column = e.column.map(|c| t.header(c).to_string());
+                l.problem(
+                    &t.file,
+                    row,
+                    column.as_deref(),
+                    "calibration-range",
+                    e.message,
+                );
+            }
+        }
+        Some(m)
+    });
     // Ok(None): no drawbells table; Err: one was given but its columns could not be read.
     let bells = match bells {
         None => Ok(None),

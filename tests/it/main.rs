@@ -1,5 +1,6 @@
 //! The one integration-test binary (ripgrep/polars style): one module per layer.
 
+mod calibration;
 mod cli;
 mod engine;
 mod io;
