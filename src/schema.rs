@@ -213,6 +213,14 @@ pub const PERIODS: TableSpec = TableSpec {
             &["Name"],
         ),
         f("days", F64, "d", "Period length", true, &["Days"]),
+        f(
+            "start_date",
+            Str,
+            "-",
+            "First day of the period, ISO 8601 (YYYY-MM-DD). Optional; an empty cell after the first row follows from the previous period's start and days. Used to map dated production records to periods",
+            false,
+            &["Start", "StartDate"],
+        ),
     ],
     extra: None,
 };

@@ -178,6 +178,7 @@ pub fn henderson(scale: DemoScale, seed: u64) -> Scene {
             id: (1..=3650).collect(),
             name: (1..=3650).map(|d: i64| d.to_string()).collect(),
             days: vec![1.0; 3650],
+            start: None,
         },
     };
     let late_period = periods.id[periods.len() / 3];

@@ -975,6 +975,7 @@ impl Loader {
         let (ids, days) = (t.i64("period")?, t.f64("days")?);
         let names = t.str("name");
         let mut seen = HashSet::new();
+        let mut rows = Vec::with_capacity(ids.len());
         for (i, (id, &d)) in ids.iter().zip(days).enumerate() {
             let row = Some(t.row(i));
             let Some(id) = *id else {
@@ -1010,8 +1011,71 @@ impl Loader {
             p.id.push(id);
             p.name.push(name);
             p.days.push(d);
+            rows.push(i);
+        }
+        if let Some(dates) = t.str("start_date") {
+            p.start = self.period_starts(t, dates, &rows, &p.days);
         }
         Some(p)
+    }
+
+    /// Period starts (days since 1970-01-01) from the `start_date` column, for the periods
+    /// read from records `rows`: the first must be given, an empty cell later follows from
+    /// the previous period (start + days), and a period must not start before the previous
+    /// one ends (`period-order`; a gap, such as a shutdown, is allowed). None after a
+    /// problem.
+    fn period_starts(
+        &mut self,
+        t: &Table,
+        dates: &[String],
+        rows: &[usize],
+        days: &[f64],
+    ) -> Option<Vec<f64>> {
+        let file = t.file.as_str();
+        let col = t.header("start_date");
+        let mut start: Vec<f64> = Vec::with_capacity(rows.len());
+        let mut ok = true;
+        for (k, &i) in rows.iter().enumerate() {
+            let row = Some(t.row(i));
+            let text = dates.get(i).map(|s| s.trim()).unwrap_or("");
+            let prev_end = start.last().map(|&s| s + days[k - 1]);
+            let s = if text.is_empty() {
+                match prev_end {
+                    Some(e) => e,
+                    None => {
+                        if !t.bad("start_date", i) {
+                            self.problem(file, row, Some(col), "missing-value", "the first period needs a start_date (later ones may follow from it)".into());
+                        }
+                        return None;
+                    }
+                }
+            } else {
+                match crate::model::records::parse_iso_date(text) {
+                    Some(d) => d as f64,
+                    None => {
+                        self.problem(
+                            file,
+                            row,
+                            Some(col),
+                            "bad-date",
+                            format!("`{text}` is not an ISO 8601 date (YYYY-MM-DD)"),
+                        );
+                        ok = false;
+                        prev_end.unwrap_or(0.0)
+                    }
+                }
+            };
+            if let Some(e) = prev_end.filter(|&e| s < e) {
+                self.problem(file, row, Some(col), "period-order", format!(
+                    "period starts {} but the previous period runs to {} (its start plus its days): periods must not overlap",
+                    crate::model::records::iso_date(s),
+                    crate::model::records::iso_date(e)
+                ));
+                ok = false;
+            }
+            start.push(s);
+        }
+        ok.then_some(start)
     }
 
     /// Periods when no periods table is given: the wide form's headers, or the long form's
@@ -1032,6 +1096,7 @@ impl Loader {
             name: ids.iter().map(|i| i.to_string()).collect(),
             days: vec![1.0; ids.len()],
             id: ids,
+            start: None,
         }
     }
 

@@ -5,11 +5,13 @@ pub mod block_model;
 pub mod demo;
 pub mod layout;
 pub mod load;
+pub mod records;
 pub mod scenario;
 pub mod synthetic;
 
 pub use block_model::BlockModel;
 pub use layout::{Drawpoints, Periods, Schedule};
+pub use records::{load_records, ProductionRecords};
 pub use scenario::Scenario;
 
 /// A fully loaded, validated scene: what the engine runs.

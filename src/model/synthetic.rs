@@ -103,6 +103,7 @@ impl UniformBox {
             id: (1..=self.periods as i64).collect(),
             name: (1..=self.periods).map(|p| p.to_string()).collect(),
             days: vec![1.0; self.periods],
+            start: None,
         };
         let schedule = Schedule {
             n_drawpoints: nd,

@@ -105,10 +105,29 @@ pub fn write_drawpoints(path: &Path, d: &Drawpoints) -> Result<(), OutputError> 
     write_csv(path, &["name", "x", "y", "z", "width", "zone"], rows)
 }
 
-/// Writes the periods as CSV: `period,name,days`.
+/// Writes the periods as CSV: `period,name,days`, and `start_date` when the periods have
+/// start dates (given for the first period and after a gap, empty where it follows).
 pub fn write_periods(path: &Path, p: &Periods) -> Result<(), OutputError> {
-    let rows = (0..p.len()).map(|i| (p.id[i], &p.name[i], p.days[i]));
-    write_csv(path, &["period", "name", "days"], rows)
+    match &p.start {
+        None => {
+            let rows = (0..p.len()).map(|i| (p.id[i], &p.name[i], p.days[i]));
+            write_csv(path, &["period", "name", "days"], rows)
+        }
+        Some(start) => {
+            // Only the starts that do not follow from the previous period (the first, and
+            // after a gap): the rest are left empty, so fractional days never round.
+            let rows = (0..p.len()).map(|i| {
+                let follows = i > 0 && start[i] == start[i - 1] + p.days[i - 1];
+                let date = if follows {
+                    String::new()
+                } else {
+                    crate::model::records::iso_date(start[i])
+                };
+                (p.id[i], &p.name[i], p.days[i], date)
+            });
+            write_csv(path, &["period", "name", "days", "start_date"], rows)
+        }
+    }
 }
 
 /// Writes the long-form schedule (`period,drawpoint,tonnes`, only rows with tonnes > 0),

@@ -7,6 +7,7 @@
 //! - [`manifest`]: the run manifest (`manifest.json`).
 //! - [`inputs`]: a [`Scene`](crate::model::Scene) written back as input tables and a scenario
 //!   file (used by `caveflow demo`).
+//! - [`records`](self::records): production records (the demo's synthetic ones).
 //! - `charts`: PNG and SVG charts.
 //! - [`stress`](self::stress): the stress logic's tables and charts.
 //!
@@ -24,6 +25,7 @@ pub mod figures;
 pub mod inputs;
 pub mod manifest;
 pub mod parquet;
+pub mod records;
 pub mod run;
 pub mod stress;
 

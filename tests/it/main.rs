@@ -7,6 +7,7 @@ mod io;
 mod mechanisms;
 mod output;
 mod props;
+mod records;
 mod rilling;
 mod stability;
 mod stress;
