@@ -370,6 +370,9 @@ pub fn keep_periods(scene: &mut Scene, n: usize) {
     scene.periods.id.truncate(n);
     scene.periods.name.truncate(n);
     scene.periods.days.truncate(n);
+    if let Some(s) = scene.periods.start.as_mut() {
+        s.truncate(n);
+    }
     let nd = scene.schedule.n_drawpoints;
     scene.schedule.tonnes.truncate(n * nd);
 }

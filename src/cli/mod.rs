@@ -129,6 +129,16 @@ pub struct DemoArgs {
     /// Seed of the generator and of the scenario.
     #[arg(long, default_value_t = 42)]
     pub seed: u64,
+    /// Also write synthetic production records (records.csv): a run of the demo with a
+    /// hidden true Urad fragment size (0.15 m, not the stated 0.23 m) plus sampling noise.
+    #[arg(long)]
+    pub records: bool,
+    /// Relative sampling noise σ of the records' grades and fragment sizes.
+    #[arg(long, default_value_t = crate::analysis::records::DEMO_SIGMA, requires = "records")]
+    pub records_sigma: f64,
+    /// Seed of the records' sampling noise.
+    #[arg(long, default_value_t = crate::analysis::records::DEMO_NOISE_SEED, requires = "records")]
+    pub records_seed: u64,
 }
 
 /// `caveflow sweep`.
@@ -427,10 +437,37 @@ fn demo_cmd(a: DemoArgs) -> Result<ExitCode> {
     for f in files {
         println!("  {}", f.display());
     }
-    println!(
-        "run it with: caveflow run {}",
-        Path::new(&a.out).join("scenario.toml").display()
-    );
+    let scenario_file = Path::new(&a.out).join("scenario.toml");
+    if a.records {
+        // Through the files just written, exactly as a user's run would read them.
+        let sc = Scenario::load(&scenario_file, &[])?;
+        let Some(l) = load(&sc) else {
+            return Ok(ExitCode::from(1));
+        };
+        let cfg = crate::analysis::records::SyntheticRecords {
+            sigma: a.records_sigma,
+            frag_sigma: Some(a.records_sigma),
+            seed: a.records_seed,
+            ..Default::default()
+        };
+        let bar = progress(l.scene.periods.len() as u64, "periods (true fragmentation)");
+        let recs =
+            crate::analysis::records::synthetic_records(&l.scene, &sc, &cfg, &mut |p, _| {
+                bar.set_position(p as u64)
+            })?;
+        bar.finish_and_clear();
+        let path = Path::new(&a.out).join("records.csv");
+        output::records::write_records(&path, &recs, &l.scene.drawpoints)?;
+        println!(
+            "  {} ({} synthetic records: true calibration {:?}, noise σ {}, seed {})",
+            path.display(),
+            recs.len(),
+            cfg.truth.frag_factor,
+            cfg.sigma,
+            cfg.seed
+        );
+    }
+    println!("run it with: caveflow run {}", scenario_file.display());
     Ok(ExitCode::SUCCESS)
 }
 

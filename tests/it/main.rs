@@ -12,3 +12,4 @@ mod rilling;
 mod stability;
 mod stress;
 mod sweep;
+mod synthetic_records;
