@@ -9,4 +9,5 @@ mod props;
 mod rilling;
 mod stability;
 mod stress;
+mod surface_cone;
 mod sweep;
