@@ -6,6 +6,7 @@
 
 use std::path::Path;
 
+use caveflow::engine::imz::r_law;
 use caveflow::engine::{Engine, RunOutput};
 use caveflow::model::synthetic::UniformBox;
 use caveflow::model::{Scenario, Scene};
@@ -142,6 +143,22 @@ impl Field {
         }
     }
 
+    /// Share of a void entering the lowest disk that the r-law passes through every disk to
+    /// the surface, Π (1 − r_i), in the IMZ of the period nearest k × m_b.
+    fn pass_through(&self, k: f64) -> f64 {
+        let p = self.at(k).drawn / self.scene.schedule.tonnes[0];
+        let t = &self.out.imz;
+        let mut disks: Vec<(f64, f64)> = (0..t.radius.len())
+            .filter(|&j| t.period[j] as f64 == p.round())
+            .map(|j| (t.z_base[j], t.radius[j]))
+            .collect();
+        disks.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let (d, phi) = (0.0083, 40.0);
+        (1..disks.len())
+            .map(|i| 1.0 - r_law(d, 2.0 * S, disks[i].1, disks[i - 1].1, phi, 3.5))
+            .product()
+    }
+
     /// The row at a draw of k × m_b.
     fn at(&self, k: f64) -> Row {
         *self
@@ -191,10 +208,17 @@ fn the_surface_cone_outruns_the_imz_in_the_far_field_and_meets_it_near_the_rim_i
             );
         }
         let (a, b) = (f.at(3.0), f.at(5.0));
+        // Not asserted (the summary's "more similar rates" in the near field is not what the
+        // r-law gives here, see the README): how fast rim and IMZ grow, and the share of the
+        // void that reaches the surface. The near-field IMZ is a funnel whose walls sit near
+        // the 45 + φ/2 limit, so the r-law's bracket throttles its widening and more of the
+        // void goes to the crater than in the far field.
         eprintln!(
-            "  from 3× to 5× m_b the rim grew {:.3} m, the IMZ at the surface {:.3} m",
+            "  from 3× to 5× m_b the rim grew {:.3} m, the IMZ at the surface {:.3} m; void reaching the surface {:.0}% (3×), {:.0}% (5×)",
             b.rim - a.rim,
-            b.r_meet - a.r_meet
+            b.r_meet - a.r_meet,
+            100.0 * f.pass_through(3.0),
+            100.0 * f.pass_through(5.0)
         );
         // The section (like Fig. 33): surface cone, IMZ and IEZ outlines, marker layers.
         let last = f.rows.last().unwrap();
@@ -223,8 +247,8 @@ fn the_surface_cone_outruns_the_imz_in_the_far_field_and_meets_it_near_the_rim_i
             rf / rn
         );
         // Near field: the IMZ limit meets the surface close to the rim. Band [0.8, 1.4]:
-        // measured 1.04 (3×) and 1.25 (5×); the rim is read to a ring of s = 12.5 mm on
-        // ~0.2 m (±6%), and halving s and h moves the ratio by −7% (1.25 → 1.16).
+        // measured 1.04 (3×) and 1.25 (5×), 1.03 and 1.23 at half the h and s; the rim is
+        // read to a ring of s = 12.5 mm on ~0.2 m (±6%), and the ratio rises with the draw.
         assert!(
             (0.8..=1.4).contains(&rn),
             "near field rim/IMZ {rn} at {k}× m_b"
@@ -232,8 +256,8 @@ fn the_surface_cone_outruns_the_imz_in_the_far_field_and_meets_it_near_the_rim_i
         // Far field: the cone outruns the IMZ by a clear margin more than in the near field.
         // The r-law makes the post-breakthrough IMZ growth self-similar (ΔR/R depends on
         // v/R⁴ and m_b ∝ R⁴/d̄), while a crater at repose has rim ∝ V^{1/3}, so rim/R scales
-        // as (H/d̄)^{1/6}: 4^{1/6} = 1.26 between these columns. Measured 1.29 (3×) and 1.26
-        // (5×), 1.35 and 1.27 at half the spacing; 1.15 leaves room for that spread.
+        // as (H/d̄)^{1/6}: 4^{1/6} = 1.26 between these columns. Measured 1.32 (3×) and 1.27
+        // (5×), 1.23 and 1.25 at half the h and s; 1.15 leaves room for that spread.
         assert!(rf > 1.15 * rn, "far {rf} vs near {rn} at {k}× m_b");
     }
     // Sharply convex: by 5× m_b the far-field rim lies well outside the IMZ (measured 0.23 m,
