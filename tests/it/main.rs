@@ -11,5 +11,6 @@ mod records;
 mod rilling;
 mod stability;
 mod stress;
+mod surface_cone;
 mod sweep;
 mod synthetic_records;
