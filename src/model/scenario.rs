@@ -204,7 +204,8 @@ pub struct Outputs {
     pub surface_periods: Vec<i64>,
     /// Also write extraction, imz, drawn, air_gap and surface as Hive-partitioned Parquet
     /// datasets under `<dir>/dataset/<table>/scenario=<name>/period=<N>/` for BI tools
-    /// (`output::dataset`). Default true: the files are small next to the run.
+    /// (`output::dataset`). Default true: BI tools read them as they are. They hold the
+    /// same rows as the flat tables again; turn them off for mine-scale runs short of disk.
     pub hive: bool,
     /// Periods per dataset partition. 0 (default): automatic, one per period up to 400
     /// periods, else grouped into about 120 `period_group=` partitions (a daily mine-scale
