@@ -349,7 +349,14 @@ fn run(a: RunArgs) -> Result<ExitCode> {
     for w in &out.warnings {
         eprintln!("warning: {w}");
     }
-    let files = output::write_run(dir, scene, out, &manifest)?;
+    let name = a
+        .input
+        .scenario
+        .as_ref()
+        .and_then(|p| p.file_stem())
+        .map_or("run".to_string(), |s| s.to_string_lossy().into_owned());
+    let hive = output::dataset::HiveLayout::new(&sc, &name, scene.periods.len());
+    let files = output::write_run_with(dir, scene, out, &manifest, hive.as_ref())?;
     // The outputs are complete: the checkpoint has served.
     if checkpoint.exists() {
         std::fs::remove_file(&checkpoint).with_context(|| checkpoint.display().to_string())?;

@@ -202,6 +202,18 @@ pub struct Outputs {
     pub fines_cutoff: f64,
     /// Periods at whose end the free-surface height field is written (empty: the last).
     pub surface_periods: Vec<i64>,
+    /// Also write extraction, imz, drawn, air_gap and surface as Hive-partitioned Parquet
+    /// datasets under `<dir>/dataset/<table>/scenario=<name>/period=<N>/` for BI tools
+    /// (`output::dataset`). Default true: BI tools read them as they are. They hold the
+    /// same rows as the flat tables again; turn them off for mine-scale runs short of disk.
+    pub hive: bool,
+    /// Periods per dataset partition. 0 (default): automatic, one per period up to 400
+    /// periods, else grouped into about 120 `period_group=` partitions (a daily mine-scale
+    /// run would otherwise make thousands of tiny files per table).
+    pub hive_periods_per_partition: usize,
+    /// The `scenario=` value of the datasets. Default: the scenario file's stem (`run` when
+    /// the tables are given on the command line).
+    pub scenario_name: Option<String>,
 }
 
 impl Default for Outputs {
@@ -213,6 +225,9 @@ impl Default for Outputs {
             charts: true,
             fines_cutoff: 0.01,
             surface_periods: Vec::new(),
+            hive: true,
+            hive_periods_per_partition: 0,
+            scenario_name: None,
         }
     }
 }
@@ -638,6 +653,14 @@ impl Scenario {
         pos("fragmentation.phi", Some(f.phi))?;
         pos("fragmentation.product_exponent", Some(f.product_exponent))?;
         self.calibration.check()?;
+        if let Some(n) = &self.outputs.scenario_name {
+            let ok = |c: char| c.is_ascii_alphanumeric() || matches!(c, '.' | '_' | '-');
+            if n.is_empty() || !n.chars().all(ok) || n.starts_with('.') {
+                return Err(format!(
+                    "outputs.scenario_name `{n}` must be letters, digits, `.`, `_` and `-` (not starting with `.`): it names a directory"
+                ));
+            }
+        }
         pos("stress.cell", self.stress.cell)?;
         pos("stress.bin_k", Some(self.stress.bin_k))?;
         if !(self.stress.cohesion_kpa.is_finite() && self.stress.cohesion_kpa >= 0.0) {

@@ -4,6 +4,7 @@
 //!   writer ([`write_parquet`]) that every table goes through.
 //! - [`run`]: a run directory — extraction report, IMZ geometry, drawn markers (IEZ),
 //!   partitioned marker states and the manifest ([`write_run`]).
+//! - [`dataset`]: the run's tables as Hive-partitioned datasets (`outputs.hive`).
 //! - [`manifest`]: the run manifest (`manifest.json`).
 //! - [`inputs`]: a [`Scene`](crate::model::Scene) written back as input tables and a scenario
 //!   file (used by `caveflow demo`).
@@ -21,6 +22,7 @@
 use std::path::PathBuf;
 
 pub mod charts;
+pub mod dataset;
 pub mod figures;
 pub mod inputs;
 pub mod manifest;
@@ -30,8 +32,8 @@ pub mod run;
 pub mod stress;
 
 pub use self::manifest::Manifest;
-pub use self::parquet::{write_atomic, write_parquet, AtomicFile};
-pub use self::run::write_run;
+pub use self::parquet::{write_atomic, write_batch, write_parquet, AtomicFile};
+pub use self::run::{write_run, write_run_with};
 pub use crate::model::load::InputFile;
 
 /// A failure to write an output file. Every variant names the file.

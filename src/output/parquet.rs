@@ -183,6 +183,12 @@ pub fn write_parquet(
         path: path.to_path_buf(),
         source,
     })?;
+    write_batch(path, &batch)
+}
+
+/// Writes one record batch atomically as Parquet, its schema (with the fields' `unit` and
+/// `description` metadata) stored in the file.
+pub fn write_batch(path: &Path, batch: &RecordBatch) -> Result<(), OutputError> {
     let parquet_err = |source| OutputError::Parquet {
         path: path.to_path_buf(),
         source,
@@ -190,7 +196,7 @@ pub fn write_parquet(
     let mut file = AtomicFile::create(path)?;
     let mut writer =
         ArrowWriter::try_new(&mut file, batch.schema(), Some(properties())).map_err(parquet_err)?;
-    writer.write(&batch).map_err(parquet_err)?;
+    writer.write(batch).map_err(parquet_err)?;
     writer.close().map_err(parquet_err)?;
     file.commit()
 }

@@ -4,7 +4,10 @@
 //! <dir>/extraction.parquet
 //! <dir>/imz.parquet
 //! <dir>/drawn.parquet
+//! <dir>/air_gap.parquet, <dir>/surface.parquet
 //! <dir>/markers/period=<N>/part-0.parquet   (Hive-partitioned; `period` is also a column)
+//! <dir>/dataset/<table>/scenario=<name>/period=<N>/part-0.parquet   (outputs.hive; see
+//!                                           output::dataset)
 //! <dir>/stress_levels.parquet, <dir>/stress_sections.parquet   (only with mechanisms.stress)
 //! <dir>/manifest.json                       (written last)
 //! ```
@@ -18,8 +21,12 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use arrow::array::{ArrayRef, Float64Array, Int64Array, StringArray};
+use arrow::error::ArrowError;
+use arrow::record_batch::RecordBatch;
 
-use super::{write_parquet, Manifest, OutputError};
+use super::dataset::{write_dataset, HiveLayout};
+use super::parquet::write_batch;
+use super::{Manifest, OutputError};
 use crate::engine::result::{
     AirGapTable, DrawnTable, Extraction, ImzTable, MarkerSnapshot, RunOutput, SurfaceTable,
 };
@@ -41,6 +48,14 @@ pub(crate) fn i64s(v: Vec<i64>) -> ArrayRef {
     Arc::new(Int64Array::from(v))
 }
 
+/// Maps an Arrow error to the output file it was for.
+fn arrow_err(path: &Path) -> impl FnOnce(ArrowError) -> OutputError + '_ {
+    move |source| OutputError::Arrow {
+        path: path.to_path_buf(),
+        source,
+    }
+}
+
 /// Drawpoint names for drawpoint indices; [`u32::MAX`] (not drawn) becomes "".
 fn names(index: &[u32], names: &[String]) -> ArrayRef {
     Arc::new(StringArray::from_iter_values(
@@ -58,15 +73,33 @@ pub(crate) fn write_table(
     fixed: Vec<(&str, ArrayRef)>,
     extra: Vec<(String, ArrayRef)>,
 ) -> Result<(), OutputError> {
+    let batch = table_batch(spec, fixed, extra).map_err(|source| OutputError::Arrow {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    write_batch(path, &batch)
+}
+
+/// Named columns as one record batch, with `spec`'s schema (see [`write_table`]).
+pub(crate) fn table_batch(
+    spec: &TableSpec,
+    fixed: Vec<(&str, ArrayRef)>,
+    extra: Vec<(String, ArrayRef)>,
+) -> Result<RecordBatch, ArrowError> {
     let (fixed_names, mut columns): (Vec<&str>, Vec<ArrayRef>) = fixed.into_iter().unzip();
     let (extra_names, extra_columns): (Vec<String>, Vec<ArrayRef>) = extra.into_iter().unzip();
     columns.extend(extra_columns);
-    write_parquet(path, spec.arrow_schema(&fixed_names, &extra_names), columns)
+    RecordBatch::try_new(spec.arrow_schema(&fixed_names, &extra_names), columns)
 }
 
-/// Writes the extraction report: the fixed fields in spec order, then one column per grade
-/// under the grade's own name, then `lith_<name>` (mass share) per lithology.
+/// Writes the extraction report (see [`extraction_batch`]).
 pub fn write_extraction(path: &Path, scene: &Scene, t: Extraction) -> Result<(), OutputError> {
+    write_batch(path, &extraction_batch(scene, t).map_err(arrow_err(path))?)
+}
+
+/// The extraction report: the fixed fields in spec order, then one column per grade under
+/// the grade's own name, then `lith_<name>` (mass share) per lithology.
+pub fn extraction_batch(scene: &Scene, t: Extraction) -> Result<RecordBatch, ArrowError> {
     let blocks = &scene.blocks;
     let status = Arc::new(StringArray::from(t.status)) as ArrayRef;
     let fixed = vec![
@@ -105,11 +138,16 @@ pub fn write_extraction(path: &Path, scene: &Scene, t: Extraction) -> Result<(),
         .iter()
         .map(|l| format!("lith_{l}"))
         .zip(t.lithology.into_iter().map(f64s_or_null));
-    write_table(path, &EXTRACTION, fixed, grades.chain(liths).collect())
+    table_batch(&EXTRACTION, fixed, grades.chain(liths).collect())
 }
 
 /// Writes the IMZ geometry table.
 pub fn write_imz(path: &Path, scene: &Scene, t: ImzTable) -> Result<(), OutputError> {
+    write_batch(path, &imz_batch(scene, t).map_err(arrow_err(path))?)
+}
+
+/// The IMZ geometry table.
+pub fn imz_batch(scene: &Scene, t: ImzTable) -> Result<RecordBatch, ArrowError> {
     let fixed = vec![
         ("drawpoint", names(&t.drawpoint, &scene.drawpoints.name)),
         ("period", i64s(t.period)),
@@ -118,11 +156,16 @@ pub fn write_imz(path: &Path, scene: &Scene, t: ImzTable) -> Result<(), OutputEr
         ("z_top", f64s(t.z_top)),
         ("radius", f64s(t.radius)),
     ];
-    write_table(path, &IMZ, fixed, Vec::new())
+    table_batch(&IMZ, fixed, Vec::new())
 }
 
 /// Writes the drawn markers (the IEZ).
 pub fn write_drawn(path: &Path, scene: &Scene, t: DrawnTable) -> Result<(), OutputError> {
+    write_batch(path, &drawn_batch(scene, t).map_err(arrow_err(path))?)
+}
+
+/// The drawn markers (the IEZ).
+pub fn drawn_batch(scene: &Scene, t: DrawnTable) -> Result<RecordBatch, ArrowError> {
     let fixed = vec![
         ("marker_id", i64s(t.marker_id)),
         ("drawpoint", names(&t.drawpoint, &scene.drawpoints.name)),
@@ -135,29 +178,39 @@ pub fn write_drawn(path: &Path, scene: &Scene, t: DrawnTable) -> Result<(), Outp
         ("frag_size", f64s(t.frag_size)),
         ("rill_distance", f64s(t.rill_distance)),
     ];
-    write_table(path, &DRAWN, fixed, Vec::new())
+    table_batch(&DRAWN, fixed, Vec::new())
 }
 
 /// Writes the air-gap table.
 pub fn write_air_gap(path: &Path, t: AirGapTable) -> Result<(), OutputError> {
+    write_batch(path, &air_gap_batch(t).map_err(arrow_err(path))?)
+}
+
+/// The air-gap table.
+pub fn air_gap_batch(t: AirGapTable) -> Result<RecordBatch, ArrowError> {
     let fixed = vec![
         ("period", i64s(t.period)),
         ("x", f64s(t.x)),
         ("y", f64s(t.y)),
         ("air_gap", f64s(t.air_gap)),
     ];
-    write_table(path, &AIR_GAP, fixed, Vec::new())
+    table_batch(&AIR_GAP, fixed, Vec::new())
 }
 
 /// Writes the free-surface table.
 pub fn write_surface(path: &Path, t: SurfaceTable) -> Result<(), OutputError> {
+    write_batch(path, &surface_batch(t).map_err(arrow_err(path))?)
+}
+
+/// The free-surface table.
+pub fn surface_batch(t: SurfaceTable) -> Result<RecordBatch, ArrowError> {
     let fixed = vec![
         ("period", i64s(t.period)),
         ("x", f64s(t.x)),
         ("y", f64s(t.y)),
         ("z", f64s(t.z)),
     ];
-    write_table(path, &SURFACE, fixed, Vec::new())
+    table_batch(&SURFACE, fixed, Vec::new())
 }
 
 /// Writes one marker snapshot as `<dir>/period=<N>/part-0.parquet` (Hive partitioning, so
@@ -201,12 +254,26 @@ pub fn write_markers(dir: &Path, scene: &Scene, t: MarkerSnapshot) -> Result<Pat
 }
 
 /// Writes a whole run into `dir` (created if needed) and returns the files written, the
-/// manifest last. Consumes the run so its columns move into Arrow without a copy.
+/// manifest last. Consumes the run so its columns move into Arrow without a copy. No
+/// Hive datasets (see [`write_run_with`]).
 pub fn write_run(
     dir: &Path,
     scene: &Scene,
     run: RunOutput,
     manifest: &Manifest,
+) -> Result<Vec<PathBuf>, OutputError> {
+    write_run_with(dir, scene, run, manifest, None)
+}
+
+/// [`write_run`], and with `hive` also the extraction, imz, drawn, air_gap and surface
+/// tables as Hive-partitioned datasets under `<dir>/dataset/` (see
+/// [`dataset`](super::dataset)), from the same record batches as the flat files.
+pub fn write_run_with(
+    dir: &Path,
+    scene: &Scene,
+    run: RunOutput,
+    manifest: &Manifest,
+    hive: Option<&HiveLayout>,
 ) -> Result<Vec<PathBuf>, OutputError> {
     fs::create_dir_all(dir).map_err(|source| OutputError::Io {
         path: dir.to_path_buf(),
@@ -214,25 +281,28 @@ pub fn write_run(
     })?;
     let mut written = Vec::new();
 
-    let path = dir.join("extraction.parquet");
-    write_extraction(&path, scene, run.extraction)?;
-    written.push(path);
-
-    let path = dir.join("imz.parquet");
-    write_imz(&path, scene, run.imz)?;
-    written.push(path);
-
-    let path = dir.join("drawn.parquet");
-    write_drawn(&path, scene, run.drawn)?;
-    written.push(path);
-
-    let path = dir.join("air_gap.parquet");
-    write_air_gap(&path, run.air_gap)?;
-    written.push(path);
-
-    let path = dir.join("surface.parquet");
-    write_surface(&path, run.surface)?;
-    written.push(path);
+    let path = |name: &str| dir.join(format!("{name}.parquet"));
+    let tables: [(&str, Result<RecordBatch, ArrowError>); 5] = [
+        ("extraction", extraction_batch(scene, run.extraction)),
+        ("imz", imz_batch(scene, run.imz)),
+        ("drawn", drawn_batch(scene, run.drawn)),
+        ("air_gap", air_gap_batch(run.air_gap)),
+        ("surface", surface_batch(run.surface)),
+    ];
+    for (name, batch) in tables {
+        let p = path(name);
+        let batch = batch.map_err(arrow_err(&p))?;
+        write_batch(&p, &batch)?;
+        written.push(p);
+        if let Some(layout) = hive {
+            written.extend(write_dataset(
+                &dir.join("dataset").join(name),
+                &batch,
+                &scene.periods,
+                layout,
+            )?);
+        }
+    }
 
     let markers = dir.join("markers");
     for snapshot in run.snapshots {

@@ -2,6 +2,7 @@
 
 mod calibration;
 mod cli;
+mod dataset;
 mod engine;
 mod io;
 mod mechanisms;

@@ -32,7 +32,7 @@ pub fn read_parquet(path: &Path) -> RecordBatch {
 }
 
 /// Names of the entries of a directory, sorted.
-fn entries(dir: &Path) -> Vec<String> {
+pub fn entries(dir: &Path) -> Vec<String> {
     let mut v: Vec<String> = fs::read_dir(dir)
         .unwrap()
         .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())

@@ -7,23 +7,10 @@ use caveflow::analysis::records::{sample, synthetic_records, SyntheticRecords};
 use caveflow::engine::result::Extraction;
 use caveflow::model::load::load_scene;
 use caveflow::model::scenario::Calibration;
-use caveflow::model::synthetic::UniformBox;
 use caveflow::model::{load_records, Scenario};
 use caveflow::output::records::write_records;
 
-/// A 0.6 × 0.6 × 0.9 m box of Castro gravel with two drawpoints drawing 6 kg in each of 3
-/// periods (grade `elev`: the block's elevation; lithology `uniform`).
-fn tiny() -> caveflow::model::Scene {
-    UniformBox {
-        extent: [0.6, 0.6, 0.9],
-        block: [0.05, 0.05, 0.05],
-        drawpoints: vec![(-0.15, 0.0, 0.12), (0.15, 0.0, 0.12)],
-        periods: 3,
-        tonnes: 0.006,
-        ..UniformBox::castro_isolated()
-    }
-    .scene()
-}
+use crate::dataset::tiny;
 
 fn cfg(factor: f64, sigma: f64) -> SyntheticRecords {
     let mut truth = Calibration::default();
