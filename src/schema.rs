@@ -541,6 +541,51 @@ pub const SWEEP: TableSpec = TableSpec {
     extra: None,
 };
 
+/// Reconciliation metrics (`caveflow reconcile`).
+pub const RECONCILE_METRICS: TableSpec = TableSpec {
+    name: "reconcile",
+    description: "Predicted against sampled grades: error statistics per drawpoint, per zone and overall, per grade. Error e = predicted − sampled.",
+    fields: &[
+        f("level", Str, "-", "drawpoint | zone | overall", true, &[]),
+        f("key", Str, "-", "Drawpoint name, zone name, or all", true, &[]),
+        f("grade", Str, "-", "Grade column compared", true, &[]),
+        f("n", I64, "-", "Drawpoint-periods compared", true, &[]),
+        f("bias", F64, "%", "Mean error", true, &[]),
+        f("mae", F64, "%", "Mean absolute error", true, &[]),
+        f("rmse", F64, "%", "Root mean square error", true, &[]),
+        f("correlation", F64, "-", "Pearson correlation of predicted and sampled grades (null below 2 rows)", true, &[]),
+        f("tw_error", F64, "%", "Tonnage-weighted error: sum of sampled tonnes × error over sum of sampled tonnes", true, &[]),
+        f("mean_predicted", F64, "%", "Mean predicted grade", true, &[]),
+        f("mean_sampled", F64, "%", "Mean sampled grade", true, &[]),
+        f("sampled_tonnes", F64, "t", "Tonnes of the records compared", true, &[]),
+        f("de_predicted", F64, "t", "Dilution entry predicted: cumulative tonnes at which the dilution grade first falls below the cutoff (zones and overall: mean over drawpoints where both are known)", false, &[]),
+        f("de_sampled", F64, "t", "Dilution entry sampled, as de_predicted", false, &[]),
+        f("de_difference", F64, "t", "de_predicted − de_sampled (negative: the model dilutes too early)", false, &[]),
+    ],
+    extra: None,
+};
+
+/// Matched prediction and record rows (`caveflow reconcile`).
+pub const RECONCILE_ROWS: TableSpec = TableSpec {
+    name: "reconcile_rows",
+    description: "One row per drawpoint, period and grade where a prediction and a record meet.",
+    fields: &[
+        f("drawpoint", Str, "-", "Drawpoint name", true, &[]),
+        f("zone", Str, "-", "Drawpoint zone (empty when not given)", true, &[]),
+        f("x", F64, "m", "Drawpoint Easting", true, &[]),
+        f("y", F64, "m", "Drawpoint Northing", true, &[]),
+        f("period", I64, "-", "Period number", true, &[]),
+        f("cum_tonnes", F64, "t", "Predicted cumulative tonnes at the end of the period", true, &[]),
+        f("predicted_tonnes", F64, "t", "Credited tonnes of the period", true, &[]),
+        f("sampled_tonnes", F64, "t", "Tonnes of the records matched to the period", true, &[]),
+        f("grade", Str, "-", "Grade column", true, &[]),
+        f("predicted", F64, "%", "Predicted grade", true, &[]),
+        f("sampled", F64, "%", "Sampled grade (tonnage-weighted over the matched records)", true, &[]),
+        f("error", F64, "%", "predicted − sampled", true, &[]),
+    ],
+    extra: None,
+};
+
 /// Every table, for `caveflow schema`.
 pub const ALL: &[TableSpec] = &[
     BLOCK_MODEL,
@@ -549,6 +594,8 @@ pub const ALL: &[TableSpec] = &[
     PERIODS,
     SCHEDULE,
     PRODUCTION,
+    RECONCILE_METRICS,
+    RECONCILE_ROWS,
     EXTRACTION,
     IMZ,
     DRAWN,

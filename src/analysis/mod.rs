@@ -6,10 +6,21 @@
 //!
 //! - [`records`]: synthetic production records, from a run with a hidden "true"
 //!   calibration plus sampling noise (the demo's `data/records.csv`).
+//! - [`reconcile`]: predicted against sampled drawpoint grades (polars, lazy): matched rows
+//!   and error statistics per drawpoint, zone and overall;
+//! - [`report`]: the reconciliation as one self-contained HTML page with inline SVG charts;
+//! - [`calibrate`]: fit fragment-size, n1 and φ factors to production records by running
+//!   the engine many times in parallel.
 //!
 //! This layer sits above [`output`](crate::output): it runs the engine and writes through the
-//! output layer's writers. It is not gated behind the `analysis` cargo feature (polars);
-//! nothing here needs polars.
+//! output layer's writers. reconcile, report and calibrate use polars, behind the default
+//! `analysis` cargo feature; the sweep does not.
 
+#[cfg(feature = "analysis")]
+pub mod calibrate;
+#[cfg(feature = "analysis")]
+pub mod reconcile;
 pub mod records;
+#[cfg(feature = "analysis")]
+pub mod report;
 pub mod sweep;

@@ -16,6 +16,9 @@ use crate::model::Scenario;
 use crate::output::{self, Manifest};
 use crate::schema;
 
+#[cfg(feature = "analysis")]
+mod backanalysis;
+
 /// caveflow: gravity flow of caved rock in block and panel caving mines (REBOP after
 /// Pierce 2010). Give it a block model, drawpoints and a draw schedule; it predicts what
 /// every drawpoint delivers, period by period.
@@ -45,6 +48,16 @@ pub enum Command {
     /// The speed–accuracy sweep: run one scene at a grid of resolutions around the default
     /// and a converged reference; write sweep.parquet and sweep.png (error against time).
     Sweep(SweepArgs),
+    /// Compare a run's predictions with production records: write reconcile.parquet (bias,
+    /// MAE, RMSE, correlation, tonnage-weighted error, dilution entry per drawpoint, zone
+    /// and overall), reconcile_rows.parquet and report.html.
+    #[cfg(feature = "analysis")]
+    Reconcile(backanalysis::ReconcileArgs),
+    /// Fit fragment-size factors per lithology (and optionally n1 and φ factors) to
+    /// production records by running the engine many times; write calibration.json,
+    /// calibrated.toml and profiles.svg.
+    #[cfg(feature = "analysis")]
+    Calibrate(backanalysis::CalibrateArgs),
 }
 
 /// Where the inputs come from: a scenario file, or the tables directly.
@@ -179,6 +192,10 @@ pub fn main() -> Result<ExitCode> {
         Command::Schema(a) => schema_cmd(a),
         Command::Demo(a) => demo_cmd(a),
         Command::Sweep(a) => sweep_cmd(a),
+        #[cfg(feature = "analysis")]
+        Command::Reconcile(a) => backanalysis::reconcile_cmd(a),
+        #[cfg(feature = "analysis")]
+        Command::Calibrate(a) => backanalysis::calibrate_cmd(a),
     };
     match r {
         // A bad scenario is invalid input, like a bad table: exit 1 (the problem names the

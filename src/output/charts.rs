@@ -27,9 +27,13 @@
 //! ([`MAX_SIDE`]). Grade curves are compared between drawpoints, so many drawpoints share one
 //! pair of axes across a grid of small panels instead of a tangle of lines on one plot.
 
+mod reconcile;
 mod stability;
 mod sweep;
 
+pub use self::reconcile::{
+    diverging, error_map_chart, profile_chart, scatter_chart, MapPoint, Profile, ScatterPoint,
+};
 pub use self::stability::{stability_chart, RegionBand};
 pub use self::sweep::{sweep_chart, SweepPoint};
 
@@ -764,14 +768,21 @@ struct Ticks {
     labels: Vec<String>,
 }
 
+impl Ticks {
+    /// No ticks.
+    fn empty() -> Ticks {
+        Ticks {
+            values: Vec::new(),
+            labels: Vec::new(),
+        }
+    }
+}
+
 /// Ticks at 1, 2 or 5 × 10^k inside [lo, hi], about `max` of them at most.
 fn nice_ticks(lo: f64, hi: f64, max: usize) -> Ticks {
     let raw = (hi - lo) / max.max(1) as f64;
     if !(raw.is_finite() && raw > 0.0) {
-        return Ticks {
-            values: Vec::new(),
-            labels: Vec::new(),
-        };
+        return Ticks::empty();
     }
     let magnitude = 10f64.powf(raw.log10().floor());
     let step = [1.0, 2.0, 5.0, 10.0]

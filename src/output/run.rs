@@ -44,6 +44,10 @@ pub(crate) fn f64s_or_null(v: Vec<f64>) -> ArrayRef {
     ))
 }
 
+pub(crate) fn strs(v: Vec<String>) -> ArrayRef {
+    Arc::new(StringArray::from(v))
+}
+
 pub(crate) fn i64s(v: Vec<i64>) -> ArrayRef {
     Arc::new(Int64Array::from(v))
 }

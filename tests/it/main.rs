@@ -1,6 +1,8 @@
 //! The one integration-test binary (ripgrep/polars style): one module per layer.
 
 mod calibration;
+#[cfg(feature = "analysis")]
+mod backanalysis;
 mod cli;
 mod dataset;
 mod engine;

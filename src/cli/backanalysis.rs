@@ -1,0 +1,262 @@
+//! `caveflow reconcile` and `caveflow calibrate`: the back-analysis commands (polars, behind
+//! the default `analysis` feature).
+
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use polars::prelude::{col, lit, IntoLazy};
+
+use super::{load, progress, scenario, InputArgs};
+use crate::analysis::calibrate::{self, CalibrateConfig, Problem};
+use crate::analysis::reconcile::{self, records_frame, Frames, Settings};
+use crate::analysis::report::{write_report, ReportInfo};
+use crate::analysis::sweep::keep_periods;
+use crate::model::records::load_records;
+use crate::model::{Scenario, Scene};
+use crate::output::charts::{profile_chart, Profile};
+
+/// `caveflow reconcile`.
+#[derive(Debug, Args)]
+pub struct ReconcileArgs {
+    /// A run's output directory (holds manifest.json and extraction.parquet).
+    pub run_dir: PathBuf,
+    /// Production records (Parquet or CSV; `caveflow schema production`).
+    pub records: PathBuf,
+    /// Where to write reconcile.parquet, reconcile_rows.parquet and report.html
+    /// (default: <run-dir>/reconcile).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Grade summarised in the report (default: the `[dilution]` grade, else the first
+    /// grade sampled).
+    #[arg(long)]
+    pub grade: Option<String>,
+}
+
+/// `caveflow calibrate`.
+#[derive(Debug, Args)]
+pub struct CalibrateArgs {
+    /// Inputs (scenario file and overrides).
+    #[command(flatten)]
+    pub input: InputArgs,
+    /// Production records (Parquet or CSV).
+    #[arg(long)]
+    pub records: PathBuf,
+    /// Lithologies whose fragment-size factor is fitted (default: every lithology that is
+    /// also a drawpoint zone).
+    #[arg(long, value_delimiter = ',')]
+    pub zones: Vec<String>,
+    /// Also fit a factor on the dilated porosity n1.
+    #[arg(long)]
+    pub fit_n1: bool,
+    /// Also fit a factor on the friction angle φ.
+    #[arg(long)]
+    pub fit_friction: bool,
+    /// Coarse grid of fragment-size factors.
+    #[arg(long, value_delimiter = ',')]
+    pub coarse: Option<Vec<f64>>,
+    /// Use only the first N periods (and the records inside them).
+    #[arg(long, value_name = "N")]
+    pub keep_periods: Option<usize>,
+    /// Grade fitted (default: the `[dilution]` grade, else the first grade sampled).
+    #[arg(long)]
+    pub grade: Option<String>,
+    /// Output directory for calibration.json, calibrated.toml and profiles.svg.
+    #[arg(long, default_value = "calibrate")]
+    pub out: PathBuf,
+}
+
+/// The scenario a run was made with, from its manifest.
+fn run_scenario(run_dir: &Path) -> Result<Scenario> {
+    let path = run_dir.join("manifest.json");
+    let text = std::fs::read_to_string(&path)
+        .with_context(|| format!("{}: not a caveflow run directory", path.display()))?;
+    let v: serde_json::Value =
+        serde_json::from_str(&text).with_context(|| path.display().to_string())?;
+    let sc = v
+        .get("scenario")
+        .cloned()
+        .with_context(|| format!("{}: no scenario", path.display()))?;
+    serde_json::from_value(sc).with_context(|| format!("{}: scenario", path.display()))
+}
+
+/// The grades both tables hold, and the one summarised.
+fn grades(scene: &Scene, sampled: &[String], sc: &Scenario, asked: Option<&str>) -> Result<(Vec<String>, String)> {
+    let both: Vec<String> = sampled
+        .iter()
+        .filter(|g| scene.blocks.grade_names.contains(g))
+        .cloned()
+        .collect();
+    if both.is_empty() {
+        bail!(
+            "the records sample none of the block model's grades ({})",
+            scene.blocks.grade_names.join(", ")
+        );
+    }
+    let main = match asked {
+        Some(g) if both.iter().any(|b| b == g) => g.to_string(),
+        Some(g) => bail!("grade {g:?} is not sampled in the records (they hold {})", both.join(", ")),
+        None => match &sc.dilution.grade {
+            Some(g) if both.contains(g) => g.clone(),
+            _ => both[0].clone(),
+        },
+    };
+    Ok((both, main))
+}
+
+pub(super) fn reconcile_cmd(a: ReconcileArgs) -> Result<ExitCode> {
+    let sc = run_scenario(&a.run_dir)?;
+    let Some(loaded) = load(&sc) else {
+        return Ok(ExitCode::from(1));
+    };
+    let scene = &loaded.scene;
+    let records = match load_records(
+        &a.records,
+        &scene.drawpoints,
+        &scene.periods,
+        &scene.blocks.grade_names,
+    ) {
+        Ok(r) => r,
+        Err(problems) => {
+            eprintln!("{} problem(s) in the records:", problems.0.len());
+            eprintln!("{problems}");
+            return Ok(ExitCode::from(1));
+        }
+    };
+    let (compared, main) = grades(scene, &records.grade_names, &sc, a.grade.as_deref())?;
+    let frames = Frames {
+        predicted: reconcile::read_predicted(&a.run_dir.join("extraction.parquet"), &compared)?,
+        records: records_frame(&records, &scene.drawpoints)?,
+        drawpoints: reconcile::drawpoints_frame(&scene.drawpoints)?,
+    };
+    let settings = Settings {
+        grades: compared,
+        dilution: sc.dilution.grade.clone().map(|g| (g, sc.dilution.cutoff)),
+    };
+    let r = reconcile::reconcile(&frames, &settings)?;
+    let out = a.out.unwrap_or_else(|| a.run_dir.join("reconcile"));
+    std::fs::create_dir_all(&out).with_context(|| out.display().to_string())?;
+    reconcile::write_reconciliation(&out, &r)?;
+    let info = ReportInfo {
+        title: format!("Reconciliation: {} drawpoints", scene.drawpoints.len()),
+        sources: vec![
+            format!("run: {}", a.run_dir.display()),
+            format!("records: {}", a.records.display()),
+        ],
+        grade: main.clone(),
+    };
+    let page = write_report(&out, &r, scene, &info)?;
+    let m = |k| r.metric("overall", "all", &main, k).unwrap_or(f64::NAN);
+    println!(
+        "{main}: {:.0} drawpoint-periods, bias {:+.4}%, RMSE {:.4}%, r {:.2}",
+        m("n"),
+        m("bias"),
+        m("rmse"),
+        m("correlation")
+    );
+    println!(
+        "wrote {} and {}",
+        out.join("reconcile.parquet").display(),
+        page.display()
+    );
+    Ok(ExitCode::SUCCESS)
+}
+
+pub(super) fn calibrate_cmd(a: CalibrateArgs) -> Result<ExitCode> {
+    let sc = scenario(&a.input)?;
+    // The scene as read: the calibration is applied per run, from the scenario's start.
+    let mut raw = sc.clone();
+    raw.calibration = Default::default();
+    let Some(mut loaded) = load(&raw) else {
+        return Ok(ExitCode::from(1));
+    };
+    let records = match load_records(
+        &a.records,
+        &loaded.scene.drawpoints,
+        &loaded.scene.periods,
+        &loaded.scene.blocks.grade_names,
+    ) {
+        Ok(r) => r,
+        Err(problems) => {
+            eprintln!("{} problem(s) in the records:", problems.0.len());
+            eprintln!("{problems}");
+            return Ok(ExitCode::from(1));
+        }
+    };
+    if let Some(n) = a.keep_periods {
+        keep_periods(&mut loaded.scene, n);
+    }
+    let scene = &loaded.scene;
+    let (_, grade) = grades(scene, &records.grade_names, &sc, a.grade.as_deref())?;
+    let zones = if a.zones.is_empty() {
+        scene
+            .blocks
+            .lithology_names
+            .iter()
+            .filter(|l| scene.drawpoints.zone.contains(l))
+            .cloned()
+            .collect()
+    } else {
+        a.zones
+    };
+    let mut cfg = CalibrateConfig {
+        zones,
+        fit_n1: a.fit_n1,
+        fit_friction: a.fit_friction,
+        ..CalibrateConfig::default()
+    };
+    if let Some(c) = a.coarse {
+        cfg.coarse = c;
+    }
+    // Records past the last period kept are left out (dated ones simply find no match).
+    let last = scene.periods.id.last().copied().unwrap_or(0);
+    let records = records_frame(&records, &scene.drawpoints)?
+        .lazy()
+        .filter(col("period").is_null().or(col("period").lt_eq(lit(last))))
+        .collect()?;
+    let drawpoints = reconcile::drawpoints_frame(&scene.drawpoints)?;
+    let problem = Problem {
+        scene,
+        scenario: &sc,
+        records: &records,
+        drawpoints: &drawpoints,
+        grade,
+    };
+    let bar = progress(0, "runs");
+    let report = calibrate::calibrate(&problem, &cfg, &mut |done, total| {
+        bar.set_length(total as u64);
+        bar.set_position(done as u64);
+    })?;
+    bar.finish_and_clear();
+    std::fs::create_dir_all(&a.out).with_context(|| a.out.display().to_string())?;
+    calibrate::write_calibration(&a.out, &report, &sc)?;
+    let profiles: Vec<Profile> = report
+        .parameters
+        .iter()
+        .map(|f| Profile {
+            name: f.name.clone(),
+            points: f.profile.iter().map(|p| (p[0], p[1])).collect(),
+            fitted: f.value,
+            ci95: (f.ci95[0], f.ci95[1]),
+            start: f.start,
+        })
+        .collect();
+    profile_chart(
+        &a.out.join("profiles.svg"),
+        &profiles,
+        &format!("Calibration profiles: {} RMSE against each factor", report.grade),
+    )?;
+    for f in &report.parameters {
+        println!(
+            "{}: {:.3} → {:.3} ± {:.3} (95%: {:.3}–{:.3}); RMSE of its {} rows {:.4}% → {:.4}%",
+            f.name, f.start, f.value, f.se, f.ci95[0], f.ci95[1], f.n, f.rmse_before, f.rmse_after
+        );
+    }
+    println!(
+        "overall {} RMSE {:.4}% → {:.4}% over {} drawpoint-periods, {} runs",
+        report.grade, report.rmse_before, report.rmse_after, report.n, report.runs
+    );
+    println!("wrote {}", a.out.join("calibrated.toml").display());
+    Ok(ExitCode::SUCCESS)
+}
