@@ -422,7 +422,12 @@ impl<'a> Engine<'a> {
         let hook = |mk: &Markers, k: usize, st: &mut markers::Step| perc.apply(mk, k, st);
         let extra: Option<&(dyn Fn(&Markers, usize, &mut markers::Step) + Sync)> =
             self.scenario.mechanisms.fines.then_some(&hook);
-        let mut drawn = markers::move_rows(&mut self.markers, &field, extra, &rows);
+        let mut drawn = if rows.len() == self.markers.len() {
+            // Every marker is active: the contiguous pass (the same steps, no row windows).
+            markers::move_markers(&mut self.markers, &field, extra)
+        } else {
+            markers::move_rows(&mut self.markers, &field, extra, &rows)
+        };
         if self.scenario.mechanisms.fragmentation {
             fragmentation::attrite(&mut self.markers, bm, &self.scenario.fragmentation);
         }
