@@ -537,6 +537,7 @@ pub const SWEEP: TableSpec = TableSpec {
         f("is_default", I64, "-", "1 for the default resolution", true, &[]),
         f("is_reference", I64, "-", "1 for the converged reference run (its errors are 0 by definition)", true, &[]),
         f("pareto", I64, "-", "1 when no other run is both faster and has a smaller grade_rmse", true, &[]),
+        f("is_auto", I64, "-", "1 for the automatic resolution chosen for the sweep's accuracy target (engine::resolution)", true, &[]),
     ],
     extra: None,
 };

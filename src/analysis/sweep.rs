@@ -49,6 +49,10 @@ pub struct SweepConfig {
     pub reference: [f64; 3],
     /// Runs per point; the median wall time is kept (the outputs are deterministic).
     pub repeats: usize,
+    /// Accuracy target (grade RMSE, 0.01 = 1%) for which the automatic resolution
+    /// ([`resolution::resolve`] with `resolution.target_grade_rmse`) is run and marked too;
+    /// the scenario's own target, when it sets one, comes first. None: not run.
+    pub target: Option<f64>,
 }
 
 impl Default for SweepConfig {
@@ -59,6 +63,7 @@ impl Default for SweepConfig {
             increment: vec![4.0, 1.0, 0.25],
             reference: [0.5, 0.5, 0.25],
             repeats: 1,
+            target: None,
         }
     }
 }
@@ -86,6 +91,8 @@ pub struct SweepRow {
     pub is_default: bool,
     /// This is the reference run.
     pub is_reference: bool,
+    /// This is the automatic resolution for the sweep's accuracy target.
+    pub is_auto: bool,
     /// On the Pareto front of wall time against grade RMSE.
     pub pareto: bool,
 }
@@ -109,19 +116,28 @@ pub enum SweepError {
     Chart(#[from] ChartError),
 }
 
-/// Runs the scene at `mult` times the default resolution, `repeats` times; returns the
-/// output of the last run and the median wall time.
+/// The resolution `mult` times `default`.
+fn times(default: &ResolvedResolution, mult: [f64; 3]) -> ResolvedResolution {
+    ResolvedResolution {
+        layer_thickness: default.layer_thickness * mult[0],
+        marker_spacing: default.marker_spacing * mult[1],
+        draw_increment: default.draw_increment * mult[2],
+    }
+}
+
+/// Runs the scene at resolution `res` (`mult` times the default), `repeats` times; returns
+/// the output of the last run and the median wall time.
 fn run_at(
     scene: &Scene,
     base: &Scenario,
-    default: &ResolvedResolution,
+    res: &ResolvedResolution,
     mult: [f64; 3],
     repeats: usize,
 ) -> Result<(RunOutput, f64), SweepError> {
     let mut sc = base.clone();
-    sc.resolution.layer_thickness = Some(default.layer_thickness * mult[0]);
-    sc.resolution.marker_spacing = Some(default.marker_spacing * mult[1]);
-    sc.resolution.draw_increment = Some(default.draw_increment * mult[2]);
+    sc.resolution.layer_thickness = Some(res.layer_thickness);
+    sc.resolution.marker_spacing = Some(res.marker_spacing);
+    sc.resolution.draw_increment = Some(res.draw_increment);
     sc.flow.enforce_stability = false;
     let mut times = Vec::new();
     let mut last = None;
@@ -193,7 +209,7 @@ fn mean_relative(a: &[f64], r: &[f64]) -> f64 {
 }
 
 /// Relative RMSE of the first grade over the drawpoint-periods both runs drew from.
-fn grade_rmse(out: &RunOutput, reference: &RunOutput) -> f64 {
+pub fn grade_rmse(out: &RunOutput, reference: &RunOutput) -> f64 {
     let (Some(g), Some(gr)) = (
         out.extraction.grades.first(),
         reference.extraction.grades.first(),
@@ -247,8 +263,10 @@ pub fn sweep(
     cfg: &SweepConfig,
     progress: &mut dyn FnMut(usize, usize, &SweepRow),
 ) -> Result<Vec<SweepRow>, SweepError> {
-    let default = resolution::resolve(scene, base);
-    let mut grid = vec![cfg.reference];
+    let mut plain = base.clone();
+    plain.resolution.target_grade_rmse = None;
+    let default = resolution::resolve(scene, &plain);
+    let mut grid: Vec<[f64; 3]> = vec![cfg.reference];
     for &h in &cfg.h {
         for &s in &cfg.spacing {
             for &i in &cfg.increment {
@@ -262,9 +280,27 @@ pub fn sweep(
     if !grid.contains(&[1.0; 3]) {
         grid.push([1.0; 3]);
     }
+    let mut res: Vec<ResolvedResolution> = grid.iter().map(|&m| times(&default, m)).collect();
+    // The automatic resolution, run as chosen (its multipliers are for the table).
+    let auto_at = base
+        .resolution
+        .target_grade_rmse
+        .or(cfg.target)
+        .map(|target| {
+            let mut sc = base.clone();
+            sc.resolution.target_grade_rmse = Some(target);
+            let auto = resolution::resolve(scene, &sc);
+            grid.push([
+                auto.layer_thickness / default.layer_thickness,
+                auto.marker_spacing / default.marker_spacing,
+                auto.draw_increment / default.draw_increment,
+            ]);
+            res.push(auto);
+            grid.len() - 1
+        });
     let n_dp = scene.drawpoints.len();
     let total = grid.len();
-    let (reference, ref_wall) = run_at(scene, base, &default, cfg.reference, cfg.repeats)?;
+    let (reference, ref_wall) = run_at(scene, base, &res[0], cfg.reference, cfg.repeats)?;
     let ref_w = imz_widths(&reference, n_dp);
     let ref_h = iez_heights(&reference, scene);
     let mut rows = Vec::with_capacity(total);
@@ -272,7 +308,7 @@ pub fn sweep(
         let row = if k == 0 {
             row_of(mult, &reference, ref_wall, 0.0, 0.0, 0.0)
         } else {
-            let (out, wall) = run_at(scene, base, &default, mult, cfg.repeats)?;
+            let (out, wall) = run_at(scene, base, &res[k], mult, cfg.repeats)?;
             let e_grade = grade_rmse(&out, &reference);
             let e_w = mean_relative(&imz_widths(&out, n_dp), &ref_w);
             let e_h = mean_relative(&iez_heights(&out, scene), &ref_h);
@@ -280,6 +316,8 @@ pub fn sweep(
         };
         let row = SweepRow {
             is_reference: k == 0,
+            is_auto: auto_at == Some(k),
+            is_default: row.is_default && auto_at != Some(k),
             ..row
         };
         progress(k + 1, total, &row);
@@ -313,6 +351,7 @@ fn row_of(
         },
         is_default: mult == [1.0; 3],
         is_reference: false,
+        is_auto: false,
         pareto: false,
     }
 }
@@ -340,6 +379,7 @@ pub fn write_sweep(path: &Path, rows: &[SweepRow]) -> Result<(), OutputError> {
         ("is_default", flag(&|r| r.is_default)),
         ("is_reference", flag(&|r| r.is_reference)),
         ("pareto", flag(&|r| r.pareto)),
+        ("is_auto", flag(&|r| r.is_auto)),
     ];
     write_table(path, &SWEEP, fixed, Vec::new())
 }
@@ -355,6 +395,7 @@ pub fn write_sweep_chart(path: &Path, rows: &[SweepRow], title: &str) -> Result<
             label: format!("{}/{}/{}", r.mult[0], r.mult[1], r.mult[2]),
             pareto: r.pareto,
             is_default: r.is_default,
+            is_auto: r.is_auto,
         })
         .collect();
     let ref_wall = rows
@@ -393,6 +434,7 @@ mod tests {
             delivered: 1.0,
             is_default: false,
             is_reference: false,
+            is_auto: false,
             pareto: false,
         }
     }

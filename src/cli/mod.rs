@@ -181,6 +181,10 @@ pub struct SweepArgs {
     /// Runs per point (the median wall time is kept).
     #[arg(long, default_value_t = 1)]
     pub repeats: usize,
+    /// Accuracy target (grade RMSE, 0.01 = 1%): the automatic resolution for it is run too
+    /// and marked on the chart (a target in the scenario comes first).
+    #[arg(long, default_value_t = 0.01)]
+    pub target: f64,
 }
 
 /// Parses the command line and runs it.
@@ -513,6 +517,7 @@ fn sweep_cmd(mut a: SweepArgs) -> Result<ExitCode> {
         increment: a.increment,
         reference: [a.reference[0], a.reference[1], a.reference[2]],
         repeats: a.repeats,
+        target: Some(a.target),
     };
     let rows = sweep::sweep(&loaded.scene, &sc, &cfg, &mut |done, total, r| {
         eprintln!(

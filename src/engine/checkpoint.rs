@@ -109,6 +109,8 @@ impl<'a> Engine<'a> {
             || s.engulfed.len() != e.engulfed.len()
             || s.engulfed_mass.len() != e.engulfed_mass.len()
             || s.next > scene.periods.len()
+            || !s.markers.is_consistent()
+            || !s.drawn.m.is_consistent()
         {
             return Err(bad("does not fit this scene".into()));
         }
@@ -121,6 +123,8 @@ impl<'a> Engine<'a> {
         e.carry = s.carry;
         e.cum = s.cum;
         e.out = s.out;
+        // The marker bins are derived state.
+        e.bins.sync(&e.markers);
         Ok((e, s.next))
     }
 }

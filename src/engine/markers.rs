@@ -170,6 +170,27 @@ impl Markers {
         self.id.is_empty()
     }
 
+    /// Whether every column has one value per marker (a decoded checkpoint may not).
+    pub fn is_consistent(&self) -> bool {
+        let n = self.id.len();
+        [
+            self.x.len(),
+            self.y.len(),
+            self.z.len(),
+            self.mass.len(),
+            self.block.len(),
+            self.frag.len(),
+            self.strain.len(),
+            self.work.len(),
+            self.rill.len(),
+            self.frag0.len(),
+            self.attrited.len(),
+            self.percolated.len(),
+        ]
+        .iter()
+        .all(|&l| l == n)
+    }
+
     /// Appends a marker.
     #[allow(clippy::too_many_arguments)]
     pub fn push(&mut self, id: u64, p: [f64; 3], mass: f64, block: u32, frag: f64) {
@@ -463,6 +484,274 @@ pub fn move_markers(
         .filter(|(_, s)| s.drawn_by != u32::MAX)
         .map(|(k, s)| (k, s.drawn_by))
         .collect()
+}
+
+/// Moves the marker rows `rows` (ascending, distinct) once: [`move_markers`] restricted to
+/// the markers that a drawing IMZ can reach (the rows of the active cells of [`Bins`]).
+/// Every other marker would take a zero step, so the result is [`move_markers`]'s bit for
+/// bit. Parallel over chunks of rows, each writing its own window of the columns.
+pub fn move_rows(
+    mk: &mut Markers,
+    field: &MotionField,
+    extra: Option<&(dyn Fn(&Markers, usize, &mut Step) + Sync)>,
+    rows: &[u32],
+) -> Vec<(usize, u32)> {
+    if rows.is_empty() {
+        return Vec::new();
+    }
+    debug_assert!(rows.windows(2).all(|w| w[0] < w[1]));
+    let chunk = (rows.len() / (16 * rayon::current_num_threads())).max(256);
+    let chunks: Vec<&[u32]> = rows.chunks(chunk).collect();
+    let spans: Vec<(usize, usize)> = chunks
+        .iter()
+        .map(|c| (c[0] as usize, c[c.len() - 1] as usize + 1))
+        .collect();
+    let steps: Vec<Step> = match extra {
+        Some(extra) => rows
+            .par_iter()
+            .map(|&k| {
+                let k = k as usize;
+                let mut s = field.step([mk.x[k], mk.y[k], mk.z[k]]);
+                extra(mk, k, &mut s);
+                s
+            })
+            .collect(),
+        None => Vec::new(),
+    };
+    let (hooked, steps) = (extra.is_some(), &steps[..]);
+    let firsts: Vec<usize> = (0..chunks.len()).map(|c| c * chunk).collect();
+    let drawn: Vec<Vec<(usize, u32)>> = (
+        chunks,
+        spans.clone(),
+        firsts,
+        windows(&mut mk.x, &spans),
+        windows(&mut mk.y, &spans),
+        windows(&mut mk.z, &spans),
+        windows(&mut mk.strain, &spans),
+        windows(&mut mk.work, &spans),
+        windows(&mut mk.percolated, &spans),
+    )
+        .into_par_iter()
+        .map(|(rows, (lo, _), first, x, y, z, g, w, l)| {
+            let mut drawn = Vec::new();
+            for (n, &k) in rows.iter().enumerate() {
+                let i = k as usize - lo;
+                let s = if hooked {
+                    steps[first + n]
+                } else {
+                    field.step([x[i], y[i], z[i]])
+                };
+                x[i] += s.dx;
+                y[i] += s.dy;
+                z[i] += s.dz;
+                g[i] += s.strain;
+                w[i] += s.work;
+                if hooked {
+                    l[i] += s.perc;
+                }
+                if s.drawn_by != u32::MAX {
+                    drawn.push((k as usize, s.drawn_by));
+                }
+            }
+            drawn
+        })
+        .collect();
+    drawn.concat()
+}
+
+/// Disjoint windows `col[lo..hi]` for ascending, non-overlapping spans.
+fn windows<'a, T>(mut col: &'a mut [T], spans: &[(usize, usize)]) -> Vec<&'a mut [T]> {
+    let mut out = Vec::with_capacity(spans.len());
+    let mut at = 0;
+    for &(lo, hi) in spans {
+        let (_, rest) = std::mem::take(&mut col).split_at_mut(lo - at);
+        let (w, rest) = rest.split_at_mut(hi - lo);
+        out.push(w);
+        col = rest;
+        at = hi;
+    }
+    out
+}
+
+/// The moving markers binned by plan cell, so a marker update visits only the markers a
+/// drawing IMZ can reach and stagnant ones cost nothing (DESIGN §9).
+///
+/// The cells are those of the [`ImzGrid`] of the step (same origin, size and rounding, see
+/// [`Bins::cell_of`]): a marker whose cell no drawing IMZ lists takes a zero step, so
+/// stepping only the rows of the listed cells is exact. Rows outside the grid sit in one
+/// extra list that no IMZ reaches. Each row knows its cell and its slot in that cell's list,
+/// so binning, moving and removing a row are O(1). The bins mirror [`Markers`]' rows and
+/// are derived state: [`Bins::sync`] rebuilds them from the markers (on resume).
+#[derive(Debug, Clone, Default)]
+pub struct Bins {
+    origin: [f64; 2],
+    cell: f64,
+    n: [usize; 2],
+    /// Rows per cell; the last list holds the rows outside the grid.
+    lists: Vec<Vec<u32>>,
+    /// Per row: its cell and its slot in that cell's list.
+    at: Vec<(u32, u32)>,
+    /// Scratch bit set over rows, to list rows in ascending order.
+    bits: Vec<u64>,
+}
+
+impl Bins {
+    /// Empty bins over the plan rectangle `origin + [0, extent]` in square cells of side
+    /// `cell` (the arguments of [`ImzGrid::build`]).
+    pub fn new(origin: [f64; 2], extent: [f64; 2], cell: f64) -> Bins {
+        let n = [
+            ((extent[0] / cell).ceil() as usize).max(1),
+            ((extent[1] / cell).ceil() as usize).max(1),
+        ];
+        Bins {
+            origin,
+            cell,
+            n,
+            lists: vec![Vec::new(); n[0] * n[1] + 1],
+            at: Vec::new(),
+            bits: Vec::new(),
+        }
+    }
+
+    /// Number of cells in the grid (the outside list is cell `n_cells()`).
+    pub fn n_cells(&self) -> usize {
+        self.n[0] * self.n[1]
+    }
+
+    /// Cell of a plan point, computed as [`ImzGrid::at`] does; `n_cells()` outside.
+    #[inline]
+    pub fn cell_of(&self, x: f64, y: f64) -> usize {
+        let i = (x - self.origin[0]) / self.cell;
+        let j = (y - self.origin[1]) / self.cell;
+        if !(i >= 0.0 && j >= 0.0) {
+            return self.n_cells();
+        }
+        let (i, j) = (i as usize, j as usize);
+        if i >= self.n[0] || j >= self.n[1] {
+            return self.n_cells();
+        }
+        i + self.n[0] * j
+    }
+
+    /// Plan rectangle ([x0, x1], [y0, y1]) of cell `c` (< `n_cells()`).
+    pub fn cell_rect(&self, c: usize) -> [[f64; 2]; 2] {
+        let (i, j) = ((c % self.n[0]) as f64, (c / self.n[0]) as f64);
+        [
+            [self.origin[0] + i * self.cell, self.origin[0] + (i + 1.0) * self.cell],
+            [self.origin[1] + j * self.cell, self.origin[1] + (j + 1.0) * self.cell],
+        ]
+    }
+
+    /// Cells within `margin` cells of the plan rectangle [x0, x1] × [y0, y1], pushed to `out`.
+    pub fn cells_in(&self, x: [f64; 2], y: [f64; 2], margin: usize, out: &mut Vec<usize>) {
+        let span = |lo: f64, hi: f64, o: f64, n: usize| {
+            let a = ((lo - o) / self.cell).floor();
+            let b = ((hi - o) / self.cell).floor();
+            if !(b >= 0.0) || !(a < n as f64) {
+                return None;
+            }
+            let a = (a.max(0.0) as usize).saturating_sub(margin);
+            let b = (b.min(n as f64 - 1.0) as usize + margin).min(n - 1);
+            Some((a, b))
+        };
+        let (Some((i0, i1)), Some((j0, j1))) = (
+            span(x[0], x[1], self.origin[0], self.n[0]),
+            span(y[0], y[1], self.origin[1], self.n[1]),
+        ) else {
+            return;
+        };
+        for j in j0..=j1 {
+            out.extend((i0..=i1).map(|i| i + self.n[0] * j));
+        }
+    }
+
+    fn put(&mut self, row: usize, c: usize) {
+        let list = &mut self.lists[c];
+        self.at[row] = (c as u32, list.len() as u32);
+        list.push(row as u32);
+    }
+
+    fn unlink(&mut self, row: usize) {
+        let (c, s) = self.at[row];
+        let list = &mut self.lists[c as usize];
+        list.swap_remove(s as usize);
+        if let Some(&moved) = list.get(s as usize) {
+            self.at[moved as usize].1 = s;
+        }
+    }
+
+    /// Bins the rows appended to `mk` since the last call; returns their cells.
+    pub fn add_new(&mut self, mk: &Markers, cells: &mut Vec<usize>) {
+        for row in self.at.len()..mk.len() {
+            self.at.push((0, 0));
+            let c = self.cell_of(mk.x[row], mk.y[row]);
+            self.put(row, c);
+            cells.push(c);
+        }
+    }
+
+    /// Re-bins `rows` after they moved; pushes the new cells of those that changed cell.
+    pub fn update(&mut self, mk: &Markers, rows: &[u32], cells: &mut Vec<usize>) {
+        let moved: Vec<(u32, usize)> = rows
+            .par_iter()
+            .filter_map(|&r| {
+                let c = self.cell_of(mk.x[r as usize], mk.y[r as usize]);
+                (c != self.at[r as usize].0 as usize).then_some((r, c))
+            })
+            .collect();
+        for (r, c) in moved {
+            self.unlink(r as usize);
+            self.put(r as usize, c);
+            cells.push(c);
+        }
+    }
+
+    /// Brings the bins in line with `mk` after any change to it (new rows binned, moved
+    /// rows re-binned); rows may only have been appended or moved, not removed.
+    pub fn sync(&mut self, mk: &Markers) {
+        let mut cells = Vec::new();
+        let old = self.at.len().min(mk.len()) as u32;
+        self.add_new(mk, &mut cells);
+        let all: Vec<u32> = (0..old).collect();
+        self.update(mk, &all, &mut cells);
+    }
+
+    /// Mirrors [`Markers::take_into`]: row `k` leaves and the last row takes its place.
+    pub fn swap_remove(&mut self, k: usize) {
+        self.unlink(k);
+        let last = self.at.len() - 1;
+        if k != last {
+            let (c, s) = self.at[last];
+            self.lists[c as usize][s as usize] = k as u32;
+            self.at[k] = (c, s);
+        }
+        self.at.pop();
+    }
+
+    /// Rows binned in `cells` (which may repeat), in ascending order, into `out`.
+    pub fn rows_in(&mut self, cells: &[usize], out: &mut Vec<u32>) {
+        out.clear();
+        self.bits.resize(self.at.len().div_ceil(64), 0);
+        let (mut lo, mut hi) = (usize::MAX, 0usize);
+        for &c in cells {
+            for &r in &self.lists[c] {
+                let w = r as usize / 64;
+                self.bits[w] |= 1u64 << (r % 64);
+                lo = lo.min(w);
+                hi = hi.max(w);
+            }
+        }
+        if lo > hi {
+            return;
+        }
+        for w in lo..=hi {
+            let mut b = std::mem::take(&mut self.bits[w]);
+            while b != 0 {
+                out.push((w * 64) as u32 + b.trailing_zeros());
+                b &= b - 1;
+            }
+        }
+    }
 }
 
 #[cfg(test)]

@@ -45,7 +45,7 @@ use rayon::prelude::*;
 use crate::model::{Scenario, Scene};
 use fragmentation::SizeDist;
 use imz::{DiskMotion, Ground, Imz, ImzGeom, ImzGrid, ImzParams, Mobilised};
-use markers::{DrawnMarkers, Lattice, Markers, MotionField};
+use markers::{Bins, DrawnMarkers, Lattice, Markers, MotionField};
 pub use result::*;
 
 /// Bounds of the mass-correction factor (MassFlow's).
@@ -127,6 +127,22 @@ pub struct Engine<'a> {
     out: RunOutput,
     /// Marker updates done so far (keys the per-marker random streams).
     steps_done: u64,
+    /// Marker steps computed so far (the active markers summed over the updates): the
+    /// marker pass's work, which grows with the moving markers only.
+    pub marker_steps: u64,
+    /// The moving markers binned by plan cell (derived from `markers`; the active set).
+    bins: Bins,
+    /// Scratch list of active marker rows.
+    rows: Vec<u32>,
+    /// Plan cells (of `bins`) where markers moved, appeared or left since the air gap was
+    /// last recorded.
+    moved_cells: Vec<bool>,
+    /// Whether every block column's air gap must be recomputed (ground caved, rilling).
+    all_moved: bool,
+    /// Air-gap height per block column (i + n_x j) as last recorded, m.
+    air_col: Vec<f64>,
+    /// Scratch: mass per block for the air gap, t.
+    block_mass: Vec<f64>,
 }
 
 impl<'a> Engine<'a> {
@@ -209,6 +225,17 @@ impl<'a> Engine<'a> {
             ),
             out,
             steps_done: 0,
+            marker_steps: 0,
+            bins: Bins::new(
+                [bm.origin[0], bm.origin[1]],
+                [max[0] - bm.origin[0], max[1] - bm.origin[1]],
+                grid_cell(bm, res.marker_spacing),
+            ),
+            rows: Vec::new(),
+            moved_cells: Vec::new(),
+            all_moved: true,
+            air_col: vec![0.0; bm.dims[0] * bm.dims[1]],
+            block_mass: vec![0.0; bm.len()],
         })
     }
 
@@ -245,10 +272,23 @@ impl<'a> Engine<'a> {
     }
 
     fn grid_cell(&self) -> f64 {
-        let bm = &self.scene.blocks;
-        bm.size[0]
-            .min(bm.size[1])
-            .max(self.resolution.marker_spacing)
+        grid_cell(&self.scene.blocks, self.resolution.marker_spacing)
+    }
+
+    /// Rows (ascending) of the markers binned in the cells that the IMZs `which` can
+    /// reach (their plan bounding boxes and one cell around), into `self.rows`; returns the
+    /// cells.
+    fn rows_near(&mut self, geoms: &[ImzGeom], which: &[usize], mut cells: Vec<usize>) -> Vec<usize> {
+        for &d in which {
+            let g = &geoms[d];
+            let r = g.max_radius();
+            self.bins
+                .cells_in([g.x - r, g.x + r], [g.y - r, g.y + r], 1, &mut cells);
+        }
+        cells.sort_unstable();
+        cells.dedup();
+        self.bins.rows_in(&cells, &mut self.rows);
+        cells
     }
 
     /// Calls `f` with the motion field of every IMZ's last interval, as a marker update
@@ -283,9 +323,11 @@ impl<'a> Engine<'a> {
         if p == 0 || bm.cave_period.iter().any(|&c| c > prev && c <= period) {
             // Newly caved ground: perimeters and engulfment must be looked at again.
             self.imzs.iter_mut().for_each(Imz::ground_changed);
+            self.all_moved = true;
         }
-        self.refresh_mobilised();
         let row = scene.schedule.period(p);
+        let scheduled: Vec<usize> = (0..row.len()).filter(|&d| row[d] > 0.0).collect();
+        self.refresh_mobilised(&scheduled);
         let inc = self.resolution.draw_increment;
         let max_t = row.iter().cloned().fold(0.0, f64::max);
         let steps = ((max_t / inc).ceil() as usize).max(1);
@@ -343,8 +385,14 @@ impl<'a> Engine<'a> {
                 imz.finish_interval(&ground, &params);
             });
         self.engulf(period, drawing);
+        let mut cells = Vec::new();
+        self.bins.add_new(&self.markers, &mut cells);
         let geoms: Vec<ImzGeom> = self.imzs.iter().map(|m| m.geom.clone()).collect();
         let grid = ImzGrid::build(&geoms, drawing, self.extent.0, self.extent.1, cell);
+        // The active set: only markers binned where a drawing IMZ reaches can move.
+        let mut cells = self.rows_near(&geoms, drawing, cells);
+        let rows = std::mem::take(&mut self.rows);
+        self.marker_steps += rows.len() as u64;
         let empty: &[DiskMotion] = &[];
         let motion: Vec<&[DiskMotion]> = self
             .imzs
@@ -374,14 +422,23 @@ impl<'a> Engine<'a> {
         let hook = |mk: &Markers, k: usize, st: &mut markers::Step| perc.apply(mk, k, st);
         let extra: Option<&(dyn Fn(&Markers, usize, &mut markers::Step) + Sync)> =
             self.scenario.mechanisms.fines.then_some(&hook);
-        let mut drawn = markers::move_markers(&mut self.markers, &field, extra);
+        let mut drawn = if rows.len() == self.markers.len() {
+            // Every marker is active: the contiguous pass (the same steps, no row windows).
+            markers::move_markers(&mut self.markers, &field, extra)
+        } else {
+            markers::move_rows(&mut self.markers, &field, extra, &rows)
+        };
         if self.scenario.mechanisms.fragmentation {
             fragmentation::attrite(&mut self.markers, bm, &self.scenario.fragmentation);
         }
+        self.bins.update(&self.markers, &rows, &mut cells);
+        self.rows = rows;
+        self.mark_moved(&cells);
         drawn.sort_unstable_by(|a, b| b.0.cmp(&a.0));
         for (k, d) in drawn {
             self.credit(k, d as usize);
             self.markers.take_into(k, &mut self.drawn.m);
+            self.bins.swap_remove(k);
             self.drawn.drawpoint.push(d);
             self.drawn.period.push(period);
         }
@@ -402,50 +459,122 @@ impl<'a> Engine<'a> {
             size: &size,
         };
         rilling::rill(&mut st);
+        self.bins.sync(&self.markers);
+        self.all_moved = true;
+    }
+
+    /// Notes that markers moved, appeared or left in plan cells `cells` (for the air gap).
+    fn mark_moved(&mut self, cells: &[usize]) {
+        if self.moved_cells.len() != self.bins.n_cells() + 1 {
+            self.moved_cells = vec![false; self.bins.n_cells() + 1];
+        }
+        cells.iter().for_each(|&c| self.moved_cells[c] = true);
     }
 
     /// Air-gap height of every block column, appended to the air-gap table: the air blocks
     /// (caved, holding less than `rilling.air_fill` of their in-situ mass) at the top of
     /// each caved stretch of the column.
+    ///
+    /// A column's air gap changes only where markers moved, appeared or left (the plan cells
+    /// noted by `mark_moved`), or when ground caves or rills; only those columns are
+    /// recomputed, the others keep their last value. A block's mass sums its markers in
+    /// ascending row order, as a pass over every marker would.
     fn record_air_gap(&mut self, period: i64) {
         let bm = &self.scene.blocks;
-        let mut mass: Vec<f64> = (0..bm.len())
-            .map(|b| {
-                bm.size.iter().product::<f64>() * bm.density[b] * (1.0 - bm.n0[b])
-                    - self.engulfed_mass[b]
-            })
-            .collect();
+        let [nx, ny, nz] = bm.dims;
+        let vol = bm.size.iter().product::<f64>();
+        // Block columns to recompute, and the rows of the markers that may lie in them.
+        let mut cols = vec![self.all_moved; nx * ny];
+        if self.all_moved {
+            self.rows.clear();
+            self.rows.extend(0..self.markers.len() as u32);
+        } else {
+            let mut cells = Vec::new();
+            for (c, _) in self.moved_cells.iter().enumerate().filter(|m| *m.1) {
+                if c == self.bins.n_cells() {
+                    continue;
+                }
+                let [x, y] = self.bins.cell_rect(c);
+                let span = |lo: f64, hi: f64, a: usize| {
+                    let t0 = ((lo - bm.origin[a]) / bm.size[a]).floor().max(0.0) as usize;
+                    let t1 = ((hi - bm.origin[a]) / bm.size[a]).floor().max(0.0) as usize;
+                    (t0.saturating_sub(1), (t1 + 1).min(bm.dims[a] - 1))
+                };
+                let ((i0, i1), (j0, j1)) = (span(x[0], x[1], 0), span(y[0], y[1], 1));
+                for j in j0..=j1 {
+                    for i in i0..=i1 {
+                        if !cols[i + nx * j] {
+                            cols[i + nx * j] = true;
+                            let lo = [
+                                bm.origin[0] + i as f64 * bm.size[0],
+                                bm.origin[1] + j as f64 * bm.size[1],
+                            ];
+                            self.bins.cells_in(
+                                [lo[0], lo[0] + bm.size[0]],
+                                [lo[1], lo[1] + bm.size[1]],
+                                1,
+                                &mut cells,
+                            );
+                        }
+                    }
+                }
+            }
+            cells.push(self.bins.n_cells());
+            cells.sort_unstable();
+            cells.dedup();
+            self.bins.rows_in(&cells, &mut self.rows);
+        }
+        self.all_moved = false;
+        self.moved_cells.iter_mut().for_each(|m| *m = false);
+        let block = |i: usize, j: usize, k: usize| {
+            let b = bm.index[i + nx * (j + ny * k)];
+            (b != crate::model::block_model::NO_BLOCK).then_some(b as usize)
+        };
+        let full = |b: usize| vol * bm.density[b] * (1.0 - bm.n0[b]);
+        let mass = &mut self.block_mass;
+        for j in 0..ny {
+            for i in (0..nx).filter(|&i| cols[i + nx * j]) {
+                for b in (0..nz).filter_map(|k| block(i, j, k)) {
+                    mass[b] = full(b) - self.engulfed_mass[b];
+                }
+            }
+        }
         let mk = &self.markers;
-        for k in 0..mk.len() {
-            if let Some(b) = bm.locate([mk.x[k], mk.y[k], mk.z[k]]) {
-                mass[b] += mk.mass[k];
+        for &k in &self.rows {
+            let k = k as usize;
+            if let Some(c) = bm.cell([mk.x[k], mk.y[k], mk.z[k]]) {
+                if cols[c[0] + nx * c[1]] {
+                    if let Some(b) = block(c[0], c[1], c[2]) {
+                        mass[b] += mk.mass[k];
+                    }
+                }
             }
         }
         let fill = self.scenario.rilling.air_fill;
         let t = &mut self.out.air_gap;
-        for j in 0..bm.dims[1] {
-            for i in 0..bm.dims[0] {
-                // From the top of each caved stretch of the column (under uncaved ground or
-                // open to the top of the model) down to its first block that is not air. A
-                // thin block deep in the flow (markers near a drawpoint move several blocks
-                // per update) is not an air gap.
-                let mut air = 0.0;
-                let mut open = true;
-                for k in (0..bm.dims[2]).rev() {
-                    let b = bm.index[i + bm.dims[0] * (j + bm.dims[1] * k)];
-                    if b == crate::model::block_model::NO_BLOCK || !bm.flowable(b as usize, period)
-                    {
-                        open = true;
-                        continue;
+        for j in 0..ny {
+            for i in 0..nx {
+                if cols[i + nx * j] {
+                    // From the top of each caved stretch of the column (under uncaved ground
+                    // or open to the top of the model) down to its first block that is not
+                    // air. A thin block deep in the flow (markers near a drawpoint move
+                    // several blocks per update) is not an air gap.
+                    let mut air = 0.0;
+                    let mut open = true;
+                    for k in (0..nz).rev() {
+                        let Some(b) = block(i, j, k).filter(|&b| bm.flowable(b, period)) else {
+                            open = true;
+                            continue;
+                        };
+                        if open && mass[b] < fill * full(b) {
+                            air += bm.size[2];
+                        } else {
+                            open = false;
+                        }
                     }
-                    let b = b as usize;
-                    let full = bm.size.iter().product::<f64>() * bm.density[b] * (1.0 - bm.n0[b]);
-                    if open && mass[b] < fill * full {
-                        air += bm.size[2];
-                    } else {
-                        open = false;
-                    }
+                    self.air_col[i + nx * j] = air;
                 }
+                let air = self.air_col[i + nx * j];
                 if air > 0.0 {
                     t.period.push(period);
                     t.x.push(bm.origin[0] + (i as f64 + 0.5) * bm.size[0]);
@@ -597,19 +726,28 @@ impl<'a> Engine<'a> {
         }
     }
 
-    /// Recomputes the mobilised-property sums of every disk from the markers inside it.
-    fn refresh_mobilised(&mut self) {
+    /// Recomputes the mobilised-property sums of the disks of the IMZs `which` (those
+    /// drawing this period) from the markers inside them, visiting only the markers binned
+    /// where those IMZs reach. Sums run over marker rows in ascending order, as a pass over
+    /// every marker would; the other IMZs' sums are not read until they draw, and are
+    /// refreshed then.
+    fn refresh_mobilised(&mut self, which: &[usize]) {
+        if which.is_empty() {
+            return;
+        }
         let bm = &self.scene.blocks;
-        for imz in &mut self.imzs {
-            imz.mobilised
+        for &d in which {
+            self.imzs[d]
+                .mobilised
                 .iter_mut()
                 .for_each(|m| *m = Mobilised::default());
         }
         let geoms: Vec<ImzGeom> = self.imzs.iter().map(|m| m.geom.clone()).collect();
-        let all: Vec<usize> = (0..geoms.len()).collect();
-        let grid = ImzGrid::build(&geoms, &all, self.extent.0, self.extent.1, self.grid_cell());
+        let grid = ImzGrid::build(&geoms, which, self.extent.0, self.extent.1, self.grid_cell());
+        self.rows_near(&geoms, which, Vec::new());
         let mk = &self.markers;
-        for k in 0..mk.len() {
+        for &k in &self.rows {
+            let k = k as usize;
             let p = [mk.x[k], mk.y[k], mk.z[k]];
             let b = mk.block[k] as usize;
             for &d in grid.at(p[0], p[1]) {
@@ -836,6 +974,12 @@ impl<'a> Engine<'a> {
         }
         self.out
     }
+}
+
+/// Cell of the plan grids over the IMZs and the marker bins: the smaller block side, or the
+/// marker spacing when coarser.
+fn grid_cell(bm: &crate::model::BlockModel, spacing: f64) -> f64 {
+    bm.size[0].min(bm.size[1]).max(spacing)
 }
 
 /// Tributary footprint × in-situ bulk density per drawpoint (t per m of height of draw):

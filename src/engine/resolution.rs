@@ -1,5 +1,7 @@
-//! The automatic resolution: h, marker spacing and draw increment from the scene.
+//! The automatic resolution: h, marker spacing and draw increment from the scene, and from
+//! an accuracy target when one is set (`resolution.target_grade_rmse`).
 //!
+//! # The scene default
 //! Defaults follow MassFlow's ratios and are refined by the scene:
 //! - h = min(0.5 × smallest block dimension, smallest opening width): MassFlow's disks are
 //!   0.5 × block size; a disk thicker than the opening cannot resolve the base angle.
@@ -10,12 +12,65 @@
 //!   void passed "since the last marker update" (summary §3.3). The axial marker of a cone
 //!   profile moves up to 3 disks per update at this size; a third of it keeps it within
 //!   one disk at three times the cost (see the speed–accuracy sweep in the README).
+//!
+//! # From an accuracy target
+//! The speed–accuracy sweep (`analysis::sweep`, README "Speed and accuracy") measured what
+//! each knob buys on the demo: the grade RMSE against the converged reference follows the
+//! marker spacing, and h and the increment hardly move it. That is what one expects of a
+//! sampling error: a drawpoint-period's grade is the mean of the N markers it draws, N ∝
+//! tonnes / (ρ s³), so its error goes as N^(−1/2) ∝ s^(3/2). The sweep's fit of
+//! E = [`E_DEFAULT`] × m^[`SPACING_EXPONENT`] (m the spacing as a multiple of the scene
+//! default) gives the spacing for a target T:
+//!
+//! m = (T / E_DEFAULT)^(1 / SPACING_EXPONENT), bounded to [`SPACING_MULT`],
+//!
+//! then bounded by the scene: no coarser than the smallest block (lattice sites between
+//! blocks would carry no marker; `stability`) and than [`DRAWPOINT_SPACING_FRACTION`] of the
+//! median distance between neighbouring drawpoints (an IMZ must hold enough markers across
+//! to be sampled), and no finer than [`FRAG_FRACTION`] × d̄ (markers closer than fragments
+//! stand for no more material than one fragment). h stays the scene default (finer h costs
+//! time and the sweep found it changes the grade error by less than 0.005 points) but never
+//! thinner than d̄ (h/d̄ ≥ 1, `stability`). The increment follows the spacing: the same
+//! multiple m when coarser than the default (a marker then moves about as many spacings per
+//! update as at the default), the default when finer (a finer increment costs time and buys
+//! nothing measurable). The sweep supports it: at spacing × 2 the error is 0.269, 0.266 and
+//! 0.269% at increment × 1, 2 and 4; at the default spacing, increment × 2 adds 0.003 points
+//! and × 4 adds 0.019. Each step is monotone in T, so a tighter target never gives a
+//! coarser resolution.
+//!
+//! The constants are fitted on the demo's first 6 periods; another scene's error at the same
+//! multiples differs as its grade variability and its tonnes per drawpoint-period do. Run
+//! `caveflow sweep` on the scene to check: the chart marks where the automatic choice lands.
 
 use crate::engine::ResolvedResolution;
 use crate::model::{Scenario, Scene};
 
-/// Fills the unset resolution knobs from the scene.
-pub fn resolve(scene: &Scene, sc: &Scenario) -> ResolvedResolution {
+/// Grade RMSE of the scene default against the converged reference: 0.086%, the sweep's
+/// median over the demo's first 6 periods (README, "Speed and accuracy").
+pub const E_DEFAULT: f64 = 0.00086;
+
+/// Exponent of the grade RMSE in the marker-spacing multiple: the least-squares slope (in
+/// logs) of the sweep's runs at h and increment × 1 and spacing × 0.5, 1, 2 and 4 over the
+/// demo's first 6 periods, whose errors were 0.031, 0.086, 0.269 and 0.961% (README). Local
+/// slopes 1.47, 1.64 and 1.84: sampling alone would give 1.5, and at 4× the markers are as
+/// coarse as the blocks.
+pub const SPACING_EXPONENT: f64 = 1.65;
+
+/// Bounds of the spacing multiple the target can choose: the sweep measured 0.5–4; a quarter
+/// of the default is 64× the markers (hours at mine scale), and 4× is as coarse as the
+/// blocks in MassFlow's ratios.
+pub const SPACING_MULT: (f64, f64) = (0.25, 4.0);
+
+/// Largest marker spacing as a share of the median distance between neighbouring
+/// drawpoints: at least 4 marker spacings between neighbouring drawpoints, so each IMZ of
+/// the interactive-draw scale holds a few markers across.
+pub const DRAWPOINT_SPACING_FRACTION: f64 = 0.25;
+
+/// Smallest marker spacing as a multiple of the mean fragment size d̄.
+pub const FRAG_FRACTION: f64 = 1.0;
+
+/// The scene default (the rule in the module documentation, first part).
+fn scene_default(scene: &Scene) -> (f64, f64, f64, f64) {
     let bm = &scene.blocks;
     let min_block = bm.size.iter().cloned().fold(f64::INFINITY, f64::min);
     let min_open = scene
@@ -24,11 +79,7 @@ pub fn resolve(scene: &Scene, sc: &Scenario) -> ResolvedResolution {
         .iter()
         .cloned()
         .fold(f64::INFINITY, f64::min);
-    let h = sc
-        .resolution
-        .layer_thickness
-        .unwrap_or_else(|| (0.5 * min_block).min(min_open));
-    let s = sc.resolution.marker_spacing.unwrap_or(0.5 * h);
+    let h = (0.5 * min_block).min(min_open);
     let rho1 = if bm.is_empty() {
         1.0
     } else {
@@ -37,14 +88,107 @@ pub fn resolve(scene: &Scene, sc: &Scenario) -> ResolvedResolution {
             .sum::<f64>()
             / bm.len() as f64
     };
+    (h, min_block, min_open, rho1)
+}
+
+/// Spacing multiple for an accuracy target, before the scene's bounds (monotone in the
+/// target: a tighter target never gives a larger multiple).
+pub fn spacing_multiple(target: f64) -> f64 {
+    (target / E_DEFAULT)
+        .powf(1.0 / SPACING_EXPONENT)
+        .clamp(SPACING_MULT.0, SPACING_MULT.1)
+}
+
+/// Median over drawpoints of the distance to the nearest other drawpoint (NaN with fewer
+/// than two).
+fn drawpoint_spacing(scene: &Scene) -> f64 {
+    let dp = &scene.drawpoints;
+    let n = dp.len();
+    if n < 2 {
+        return f64::NAN;
+    }
+    let mut near: Vec<f64> = (0..n)
+        .map(|a| {
+            (0..n)
+                .filter(|&b| b != a)
+                .map(|b| ((dp.x[a] - dp.x[b]).powi(2) + (dp.y[a] - dp.y[b]).powi(2)).sqrt())
+                .fold(f64::INFINITY, f64::min)
+        })
+        .collect();
+    near.sort_by(f64::total_cmp);
+    near[n / 2]
+}
+
+/// Mean fragment size d̄ over the blocks, m (NaN without blocks).
+fn mean_frag(scene: &Scene) -> f64 {
+    let f = &scene.blocks.frag;
+    let ok: Vec<f64> = f.iter().copied().filter(|d| d.is_finite() && *d > 0.0).collect();
+    if ok.is_empty() {
+        f64::NAN
+    } else {
+        ok.iter().sum::<f64>() / ok.len() as f64
+    }
+}
+
+/// Fills the unset resolution knobs from the scene, and from the accuracy target when one is
+/// set.
+pub fn resolve(scene: &Scene, sc: &Scenario) -> ResolvedResolution {
+    let (h0, min_block, min_open, rho1) = scene_default(scene);
+    let set = &sc.resolution;
+    // Spacing (if the target chooses it) and the increment as a multiple of one disk.
+    let (h, s, inc_mult) = match set.target_grade_rmse {
+        None => (h0, None, 1.0),
+        Some(target) => {
+            let dbar = mean_frag(scene);
+            let h = if dbar.is_finite() {
+                h0.max(dbar.min(0.5 * min_block))
+            } else {
+                h0
+            };
+            let h = set.layer_thickness.unwrap_or(h);
+            let s0 = 0.5 * h;
+            let m = spacing_multiple(target);
+            let s = if m > 1.0 {
+                // Coarser: bounded by the blocks and the drawpoint spacing, never below s0.
+                let dp = drawpoint_spacing(scene);
+                let cap = if dp.is_finite() {
+                    min_block.min(DRAWPOINT_SPACING_FRACTION * dp)
+                } else {
+                    min_block
+                };
+                (s0 * m).min(cap).max(s0)
+            } else {
+                // Finer: bounded by the fragments, never above s0.
+                let floor = if dbar.is_finite() { FRAG_FRACTION * dbar } else { 0.0 };
+                (s0 * m).max(floor).min(s0)
+            };
+            (h, Some(s), (s / s0).max(1.0))
+        }
+    };
+    let h = set.layer_thickness.unwrap_or(h);
+    let s = set.marker_spacing.or(s).unwrap_or(0.5 * h);
     let r = 0.5 * min_open;
-    let inc = sc
-        .resolution
+    let inc = set
         .draw_increment
-        .unwrap_or(std::f64::consts::PI * r * r * h * rho1);
+        .unwrap_or(std::f64::consts::PI * r * r * h * rho1 * inc_mult);
     ResolvedResolution {
         layer_thickness: h,
         marker_spacing: s,
         draw_increment: inc,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tighter_targets_never_give_coarser_spacing() {
+        let targets = [1e-5, 1e-4, 3e-4, 8.6e-4, 2e-3, 5e-3, 1e-2, 3e-2, 0.1, 1.0];
+        let m: Vec<f64> = targets.iter().map(|&t| spacing_multiple(t)).collect();
+        assert!(m.windows(2).all(|w| w[0] <= w[1]), "{m:?}");
+        assert_eq!(spacing_multiple(E_DEFAULT), 1.0);
+        assert_eq!(m[0], SPACING_MULT.0);
+        assert_eq!(m[m.len() - 1], SPACING_MULT.1);
     }
 }

@@ -65,6 +65,11 @@ pub struct Resolution {
     /// Draw increment: tonnes per drawpoint between marker updates. Default: the tonnes
     /// of one opening disk, π (w/2)² h ρ_s (1 − n1) (see `engine::resolution`).
     pub draw_increment: Option<f64>,
+    /// Accuracy target: the grade RMSE (relative, 0.01 = 1%) against a converged run that the
+    /// resolution should reach. When set, the knobs left unset are chosen for it
+    /// (`engine::resolution::resolve`): a tighter target gives a finer resolution, never a
+    /// coarser one. Unset: the scene defaults above.
+    pub target_grade_rmse: Option<f64>,
 }
 
 /// IMZ growth and marker-motion parameters (summary §3.3).
@@ -628,6 +633,10 @@ impl Scenario {
         )?;
         pos("resolution.marker_spacing", self.resolution.marker_spacing)?;
         pos("resolution.draw_increment", self.resolution.draw_increment)?;
+        pos(
+            "resolution.target_grade_rmse",
+            self.resolution.target_grade_rmse,
+        )?;
         pos("flow.q", Some(self.flow.q))?;
         pos("flow.shear_band_factor", Some(self.flow.shear_band_factor))?;
         pos(

@@ -1115,18 +1115,22 @@ fn draw_beside_a_wall_leaves_no_void_along_it() {
     );
 }
 
+/// The Castro isolated draw over 3 periods, for the marker-pass tests.
+fn castro_3_periods() -> (Scene, Scenario) {
+    let b = UniformBox {
+        periods: 3,
+        ..UniformBox::castro_isolated()
+    };
+    (b.scene(), scenario(0.025, 0.0125, 0.01))
+}
+
 /// The marker pass without a hook (one fused pass) moves every marker exactly as the
 /// two-pass path taken with a hook does, when the hook adds nothing: same positions, strains,
 /// work and drawn rows, bit for bit.
 #[test]
 fn fused_marker_pass_matches_the_two_pass_path() {
     use caveflow::engine::markers::{move_markers, Markers, Step};
-    let b = UniformBox {
-        periods: 3,
-        ..UniformBox::castro_isolated()
-    };
-    let scene = b.scene();
-    let sc = scenario(0.025, 0.0125, 0.01);
+    let (scene, sc) = castro_3_periods();
     let mut e = Engine::new(&scene, &sc).unwrap();
     for p in 0..scene.periods.len() {
         e.run_period(p);
@@ -1153,4 +1157,104 @@ fn fused_marker_pass_matches_the_two_pass_path() {
         assert_eq!(bits(a), bits(b));
     }
     assert_ne!(bits(&fused.z), bits(&e.markers.z), "the pass moved nothing");
+}
+
+/// The active-set marker pass (`markers::move_rows` over every row) moves every marker
+/// exactly as the pass over all markers does, with and without a hook; over a subset of
+/// rows it moves those rows the same and leaves the others alone.
+#[test]
+fn active_set_pass_matches_the_pass_over_every_marker() {
+    use caveflow::engine::markers::{move_markers, move_rows, Markers, Step};
+    let (scene, sc) = castro_3_periods();
+    let mut e = Engine::new(&scene, &sc).unwrap();
+    for p in 0..scene.periods.len() {
+        e.run_period(p);
+    }
+    let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    let same = |a: &Markers, b: &Markers| {
+        for (a, b) in [
+            (&a.x, &b.x),
+            (&a.y, &b.y),
+            (&a.z, &b.z),
+            (&a.strain, &b.strain),
+            (&a.work, &b.work),
+            (&a.percolated, &b.percolated),
+        ] {
+            assert_eq!(bits(a), bits(b));
+        }
+    };
+    let all: Vec<u32> = (0..e.markers.len() as u32).collect();
+    let odd: Vec<u32> = all.iter().copied().filter(|k| k % 3 == 1).collect();
+    let hook = |_: &Markers, k: usize, s: &mut Step| {
+        s.perc = 1e-4 * (k % 7) as f64;
+        s.dz -= s.perc;
+    };
+    e.with_last_field(|field| {
+        for extra in [None, Some(&hook as &(dyn Fn(&Markers, usize, &mut Step) + Sync))] {
+            let (mut a, mut b) = (e.markers.clone(), e.markers.clone());
+            let mut da = move_markers(&mut a, field, extra);
+            let mut db = move_rows(&mut b, field, extra, &all);
+            da.sort_unstable();
+            db.sort_unstable();
+            assert!(!da.is_empty());
+            assert_eq!(da, db);
+            same(&a, &b);
+            // A subset: those rows as in the full pass, the others untouched.
+            let mut c = e.markers.clone();
+            let dc = move_rows(&mut c, field, extra, &odd);
+            assert!(dc.iter().all(|(k, _)| k % 3 == 1));
+            for k in 0..c.len() {
+                let want = if k % 3 == 1 { &a } else { &e.markers };
+                assert_eq!(c.z[k].to_bits(), want.z[k].to_bits(), "row {k}");
+                assert_eq!(c.x[k].to_bits(), want.x[k].to_bits(), "row {k}");
+            }
+        }
+    });
+}
+
+/// Stagnant markers cost nothing: markers mobilised by a drawpoint that has stopped drawing
+/// are not stepped while another, far away, draws. The same draw from the other drawpoint
+/// takes the same number of marker steps, and gives the same extraction rows, whether the
+/// first drawpoint drew before or never did.
+#[test]
+fn idle_markers_are_not_stepped() {
+    let run = |first_draws: bool| {
+        let b = UniformBox {
+            extent: [2.4, 1.2, 3.3],
+            drawpoints: vec![(-0.6, 0.0, 0.12), (0.6, 0.0, 0.12)],
+            periods: 4,
+            ..UniformBox::castro_isolated()
+        };
+        let mut scene = b.scene();
+        let nd = scene.schedule.n_drawpoints;
+        for p in 0..scene.periods.len() {
+            // Drawpoint 0 draws in period 0 only (or never); drawpoint 1 from period 1 on.
+            scene.schedule.tonnes[p * nd] = if p == 0 && first_draws { 0.02 } else { 0.0 };
+            scene.schedule.tonnes[p * nd + 1] = if p == 0 { 0.0 } else { 0.02 };
+        }
+        let sc = scenario(0.025, 0.0125, 0.01);
+        let mut e = Engine::new(&scene, &sc).unwrap();
+        e.run_period(0);
+        let (mobilised, before) = (e.markers.len(), e.marker_steps);
+        for p in 1..scene.periods.len() {
+            e.run_period(p);
+        }
+        let steps = e.marker_steps - before;
+        let out = e.run_from(scene.periods.len(), &mut |_, _| {}, &mut |_, _| {
+            Ok::<(), ()>(())
+        });
+        let ex = out.unwrap().extraction;
+        let rows: Vec<(i64, u64, u64)> = (0..ex.period.len())
+            .filter(|&i| ex.drawpoint[i] == 1)
+            .map(|i| (ex.period[i], ex.marker_tonnes[i].to_bits(), ex.markers[i] as u64))
+            .collect();
+        (mobilised, steps, rows)
+    };
+    let (idle, steps_idle, rows_idle) = run(true);
+    let (none, steps_none, rows_none) = run(false);
+    eprintln!("mobilised by the idle drawpoint {idle}; steps {steps_idle} vs {steps_none}");
+    assert!(idle > 1000 && none == 0);
+    assert!(steps_none > 0);
+    assert_eq!(steps_idle, steps_none);
+    assert_eq!(rows_idle, rows_none);
 }

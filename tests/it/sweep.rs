@@ -30,6 +30,7 @@ fn sweep_writes_table_and_chart_and_errors_shrink_toward_the_reference() {
         increment: vec![4.0, 1.0],
         reference: [0.5, 0.5, 0.25],
         repeats: 1,
+        target: None,
     };
     let rows = sweep(&scene, &sc, &cfg, &mut |_, _, _| {}).unwrap();
     for r in &rows {
@@ -75,4 +76,45 @@ fn sweep_writes_table_and_chart_and_errors_shrink_toward_the_reference() {
     write_sweep_chart(&chart, &rows, "tiny sweep").unwrap();
     assert!(std::fs::metadata(&table).unwrap().len() > 0);
     assert!(std::fs::metadata(&chart).unwrap().len() > 0);
+}
+
+/// The automatic resolution (`engine::resolution`) for a 1% grade-RMSE target lands within
+/// the target against the converged reference on the demo's first 3 periods, and tighter
+/// targets give resolutions no coarser in any knob.
+#[test]
+fn automatic_resolution_meets_its_target_on_the_demo() {
+    use caveflow::analysis::sweep::keep_periods;
+    use caveflow::engine::resolution::resolve;
+    use caveflow::model::demo::{self, DemoScale};
+    let mut scene = demo::henderson(DemoScale::Small, 42);
+    keep_periods(&mut scene, 3);
+    let base = demo::scenario(DemoScale::Small, 42);
+    let at = |t: f64| {
+        let mut sc = base.clone();
+        sc.resolution.target_grade_rmse = Some(t);
+        resolve(&scene, &sc)
+    };
+    let chosen: Vec<_> = [0.05, 0.01, 0.002, 0.0005, 1e-4].iter().map(|&t| at(t)).collect();
+    for w in chosen.windows(2) {
+        let (loose, tight) = (&w[0], &w[1]);
+        assert!(tight.layer_thickness <= loose.layer_thickness, "{chosen:?}");
+        assert!(tight.marker_spacing <= loose.marker_spacing, "{chosen:?}");
+        assert!(tight.draw_increment <= loose.draw_increment, "{chosen:?}");
+    }
+    let cfg = SweepConfig {
+        h: vec![],
+        spacing: vec![],
+        increment: vec![],
+        reference: [0.5, 0.5, 0.25],
+        repeats: 1,
+        target: Some(0.01),
+    };
+    let rows = sweep(&scene, &base, &cfg, &mut |_, _, _| {}).unwrap();
+    let auto = rows.iter().find(|r| r.is_auto).unwrap();
+    let default = rows.iter().find(|r| r.is_default).unwrap();
+    eprintln!("automatic {auto:?}\ndefault {default:?}");
+    assert_eq!(auto.resolution, at(0.01));
+    assert!(auto.grade_rmse <= 0.01, "{auto:?}");
+    // A 1% target is looser than the default's error: the choice is coarser (fewer markers).
+    assert!(auto.markers < default.markers, "{auto:?}");
 }

@@ -29,6 +29,8 @@ pub struct SweepPoint {
     pub pareto: bool,
     /// The default resolution.
     pub is_default: bool,
+    /// The automatic resolution for the accuracy target (`engine::resolution`).
+    pub is_auto: bool,
 }
 
 const WIDTH: u32 = 960;
@@ -170,6 +172,20 @@ impl Render for SweepPlot {
             } else {
                 root.draw(&Circle::new(c, 4, OFF_FRONT.filled()))?;
             }
+            if p.is_auto {
+                let d = 10;
+                root.draw(&PathElement::new(
+                    vec![(c.0, c.1 - d), (c.0 + d, c.1), (c.0, c.1 + d), (c.0 - d, c.1), (c.0, c.1 - d)],
+                    AXIS_COLOUR.stroke_width(3),
+                ))?;
+                put_text(
+                    root,
+                    "automatic",
+                    (c.0 + 12, c.1 - 12),
+                    &text(14.0, HPos::Left, VPos::Center),
+                    pen,
+                )?;
+            }
             if p.is_default {
                 root.draw(&Circle::new(c, 9, SAMPLED_COLOUR.stroke_width(3)))?;
                 put_text(
@@ -235,6 +251,18 @@ impl Render for SweepPlot {
             SAMPLED_COLOUR.stroke_width(3),
         ))?;
         put_text(root, "default resolution", (l + 586, y), &style, pen)?;
+        let (ax, ay, d) = (l + 10, y + 24, 8);
+        root.draw(&PathElement::new(
+            vec![(ax, ay - d), (ax + d, ay), (ax, ay + d), (ax - d, ay), (ax, ay - d)],
+            AXIS_COLOUR.stroke_width(3),
+        ))?;
+        put_text(
+            root,
+            "automatic resolution for the accuracy target (resolution.target_grade_rmse)",
+            (l + 22, ay),
+            &style,
+            pen,
+        )?;
         Ok(())
     }
 }
