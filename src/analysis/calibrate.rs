@@ -311,7 +311,12 @@ fn parabola(points: &[(f64, (f64, usize))], bracket: (f64, f64)) -> Option<(f64,
     if !(a > 0.0) {
         return None;
     }
-    let x_hat = -b / (2.0 * a);
+    // Never outside the points fitted: a profile still falling at the edge of the grid
+    // puts θ̂ at that edge (and its interval says how far the data let it go).
+    let (t_lo, t_hi) = near
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), p| (l.min(p.0), h.max(p.0)));
+    let x_hat = (-b / (2.0 * a)).clamp(t_lo - t0, t_hi - t0);
     let s_min = (a * x_hat * x_hat + b * x_hat + c).max(0.0);
     let n = near[0].2;
     if n < 2 {

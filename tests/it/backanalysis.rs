@@ -175,3 +175,43 @@ fn idle_drawpoints(scene: &Scene) -> usize {
         .filter(|&d| scene.schedule.total(d) <= 0.0)
         .count()
 }
+
+/// n1 and φ factors are fitted on all rows, after the zones, and the calibrated scenario
+/// written out loads back with the fitted values (a short scene: this checks the path, not
+/// the physics).
+#[test]
+fn calibrate_fits_n1_and_friction_and_writes_a_scenario_that_loads() {
+    let (mut scene, sc) = reduced();
+    keep_periods(&mut scene, 3);
+    let (records, _) = synthetic(&scene, &sc, &Calibration::default());
+    let records = records_frame(&records, &scene.drawpoints).unwrap();
+    let drawpoints = drawpoints_frame(&scene.drawpoints).unwrap();
+    let problem = Problem {
+        scene: &scene,
+        scenario: &sc,
+        records: &records,
+        drawpoints: &drawpoints,
+        grade: "mo".into(),
+    };
+    let cfg = CalibrateConfig {
+        fit_n1: true,
+        fit_friction: true,
+        global: vec![0.95, 1.0, 1.05],
+        ..CalibrateConfig::default()
+    };
+    let report = calibrate(&problem, &cfg, &mut |_, _| {}).unwrap();
+    let names: Vec<&str> = report.parameters.iter().map(|f| f.name.as_str()).collect();
+    assert_eq!(names, ["friction_factor", "n1_factor"]);
+    for f in &report.parameters {
+        assert_eq!(f.profile.len(), 3, "{f:?}");
+        assert!((0.95..=1.05).contains(&f.value), "{f:?}");
+    }
+    // 1 before + 3 + 3 + 1 after.
+    assert_eq!(report.runs, 8);
+    let dir = tempfile::tempdir().unwrap();
+    caveflow::analysis::calibrate::write_calibration(dir.path(), &report, &sc).unwrap();
+    let back = Scenario::load(&dir.path().join("calibrated.toml"), &[]).unwrap();
+    assert_eq!(back.calibration, report.calibration);
+    let json = std::fs::read_to_string(dir.path().join("calibration.json")).unwrap();
+    assert!(json.contains("\"n1_factor\"") && json.contains("rmse_after"));
+}
