@@ -8,7 +8,7 @@
 use std::path::Path;
 use std::process::Command;
 
-use caveflow::analysis::calibrate::{calibrate, CalibrateConfig, Problem};
+use caveflow::analysis::calibrate::{calibrate, CalibrateConfig, CalibrationReport, Problem};
 use caveflow::analysis::reconcile::{
     drawpoints_frame, predicted_frame, reconcile, records_frame, Frames, Settings,
 };
@@ -65,6 +65,25 @@ fn synthetic(scene: &Scene, sc: &Scenario, truth: &Calibration) -> (ProductionRe
     (records, noise)
 }
 
+/// Calibrates Mo on `records`.
+fn fit(
+    scene: &Scene,
+    sc: &Scenario,
+    records: &ProductionRecords,
+    cfg: &CalibrateConfig,
+) -> CalibrationReport {
+    let records = records_frame(records, &scene.drawpoints).unwrap();
+    let drawpoints = drawpoints_frame(&scene.drawpoints).unwrap();
+    let problem = Problem {
+        scene,
+        scenario: sc,
+        records: &records,
+        drawpoints: &drawpoints,
+        grade: "mo".into(),
+    };
+    calibrate(&problem, cfg, &mut |_, _| {}).unwrap()
+}
+
 /// Calibration finds the hidden factor.
 ///
 /// Tolerance: the fitted factor θ̂ scatters about the truth by the standard error SE the
@@ -85,21 +104,12 @@ fn calibrate_recovers_the_hidden_fragment_factor_and_cuts_rmse() {
     let mut truth = Calibration::default();
     truth.frag_factor.insert("urad".into(), TRUE_FACTOR);
     let (records, noise_rms) = synthetic(&scene, &sc, &truth);
-    let records = records_frame(&records, &scene.drawpoints).unwrap();
-    let drawpoints = drawpoints_frame(&scene.drawpoints).unwrap();
-    let problem = Problem {
-        scene: &scene,
-        scenario: &sc,
-        records: &records,
-        drawpoints: &drawpoints,
-        grade: "mo".into(),
-    };
     let cfg = CalibrateConfig {
         zones: vec!["urad".into()],
         coarse: vec![0.45, 0.6, 0.75, 0.9, 1.05],
         ..CalibrateConfig::default()
     };
-    let report = calibrate(&problem, &cfg, &mut |_, _| {}).unwrap();
+    let report = fit(&scene, &sc, &records, &cfg);
     let f = &report.parameters[0];
     eprintln!("{report:#?}\nnoise rms {noise_rms}");
     assert_eq!(f.name, "frag_factor.urad");
@@ -184,22 +194,13 @@ fn calibrate_fits_n1_and_friction_and_writes_a_scenario_that_loads() {
     let (mut scene, sc) = reduced();
     keep_periods(&mut scene, 3);
     let (records, _) = synthetic(&scene, &sc, &Calibration::default());
-    let records = records_frame(&records, &scene.drawpoints).unwrap();
-    let drawpoints = drawpoints_frame(&scene.drawpoints).unwrap();
-    let problem = Problem {
-        scene: &scene,
-        scenario: &sc,
-        records: &records,
-        drawpoints: &drawpoints,
-        grade: "mo".into(),
-    };
     let cfg = CalibrateConfig {
         fit_n1: true,
         fit_friction: true,
         global: vec![0.95, 1.0, 1.05],
         ..CalibrateConfig::default()
     };
-    let report = calibrate(&problem, &cfg, &mut |_, _| {}).unwrap();
+    let report = fit(&scene, &sc, &records, &cfg);
     let names: Vec<&str> = report.parameters.iter().map(|f| f.name.as_str()).collect();
     assert_eq!(names, ["friction_factor", "n1_factor"]);
     for f in &report.parameters {
