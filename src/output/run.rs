@@ -44,6 +44,8 @@ pub(crate) fn f64s_or_null(v: Vec<f64>) -> ArrayRef {
     ))
 }
 
+/// String column (the analysis layer's tables).
+#[cfg(feature = "analysis")]
 pub(crate) fn strs(v: Vec<String>) -> ArrayRef {
     Arc::new(StringArray::from(v))
 }
