@@ -315,7 +315,9 @@ fn parabola(points: &[(f64, (f64, usize))], bracket: (f64, f64)) -> Option<(f64,
     // puts θ̂ at that edge (and its interval says how far the data let it go).
     let (t_lo, t_hi) = near
         .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), p| (l.min(p.0), h.max(p.0)));
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), p| {
+            (l.min(p.0), h.max(p.0))
+        });
     let x_hat = (-b / (2.0 * a)).clamp(t_lo - t0, t_hi - t0);
     let s_min = (a * x_hat * x_hat + b * x_hat + c).max(0.0);
     let n = near[0].2;
@@ -348,7 +350,9 @@ pub fn calibrate(
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<CalibrationReport, CalibrateError> {
     if cfg.zones.is_empty() && !cfg.fit_n1 && !cfg.fit_friction {
-        return Err(CalibrateError::Input("nothing to fit: give zones, n1 or friction".into()));
+        return Err(CalibrateError::Input(
+            "nothing to fit: give zones, n1 or friction".into(),
+        ));
     }
     let zone_rows: BTreeMap<String, Option<String>> = {
         let names = p.drawpoints.column("zone")?.str()?.clone();
@@ -396,8 +400,11 @@ pub fn calibrate(
             argmin(&profiles[&format!("frag_factor.{z}")])
         };
         // 2. Refine around each zone's own best.
-        let centre: BTreeMap<String, f64> =
-            cfg.zones.iter().map(|z| (z.clone(), best(z, &profiles))).collect();
+        let centre: BTreeMap<String, f64> = cfg
+            .zones
+            .iter()
+            .map(|z| (z.clone(), best(z, &profiles)))
+            .collect();
         let cands: Vec<Calibration> = cfg
             .refine
             .iter()
@@ -406,7 +413,9 @@ pub fn calibrate(
         let evals = p.eval_all(&cands)?;
         tick(cands.len(), &mut runs);
         for z in &cfg.zones {
-            let prof = profiles.get_mut(&format!("frag_factor.{z}")).expect("coarse made it");
+            let prof = profiles
+                .get_mut(&format!("frag_factor.{z}"))
+                .expect("coarse made it");
             for (m, e) in cfg.refine.iter().zip(&evals) {
                 prof.push((centre[z] * m, e.of(zone_rows[z].as_deref())));
             }
@@ -417,7 +426,9 @@ pub fn calibrate(
     // 3. Globals, zones fixed.
     let globals: [(bool, &str, fn(&mut Calibration) -> &mut f64); 2] = [
         (cfg.fit_n1, "n1_factor", |c| &mut c.n1_factor),
-        (cfg.fit_friction, "friction_factor", |c| &mut c.friction_factor),
+        (cfg.fit_friction, "friction_factor", |c| {
+            &mut c.friction_factor
+        }),
     ];
     for (on, name, field) in globals {
         if !on {
@@ -468,10 +479,7 @@ pub fn calibrate(
         let hi_k = inside.last().map_or(at, |&k| (k + 1).min(prof.len() - 1));
         let (p_lo, p_hi) = (prof[lo_k].0, prof[hi_k].0);
         let se = se.max((p_hi - p_lo) / (2.0 * 1.96));
-        let ci95 = [
-            (value - 1.96 * se).min(p_lo),
-            (value + 1.96 * se).max(p_hi),
-        ];
+        let ci95 = [(value - 1.96 * se).min(p_lo), (value + 1.96 * se).max(p_hi)];
         let (start_value, slot) = if let Some(z) = name.strip_prefix("frag_factor.") {
             (start_of(z), cal.frag_factor.get_mut(z))
         } else if name == "n1_factor" {

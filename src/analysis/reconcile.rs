@@ -260,9 +260,7 @@ pub fn reconcile(f: &Frames, s: &Settings) -> PolarsResult<Reconciliation> {
         .finish()
         .filter(col("period").is_not_null())
         .select(keep.clone());
-    let by_period = records
-        .filter(col("period").is_not_null())
-        .select(keep);
+    let by_period = records.filter(col("period").is_not_null()).select(keep);
 
     // One row per drawpoint-period: tonnes summed, grades weighted by the tonnes sampled.
     let mut agg = vec![col("tonnes").sum().alias("sampled_tonnes")];
@@ -270,9 +268,8 @@ pub fn reconcile(f: &Frames, s: &Settings) -> PolarsResult<Reconciliation> {
         let gs = sampled(g);
         let has = col(gs.as_str()).is_not_null();
         agg.push(
-            ((col("tonnes") * col(gs.as_str())).sum()
-                / col("tonnes").filter(has.clone()).sum())
-            .alias(gs.as_str()),
+            ((col("tonnes") * col(gs.as_str())).sum() / col("tonnes").filter(has.clone()).sum())
+                .alias(gs.as_str()),
         );
     }
     let matched = concat([by_period, by_tonnes], UnionArgs::default())?
@@ -400,15 +397,12 @@ fn metrics(rows: &DataFrame, s: &Settings) -> PolarsResult<DataFrame> {
             [col("grade"), col("zone")],
             JoinArgs::new(JoinType::Left),
         );
-    let overall = rows
-        .group_by([col("grade")])
-        .agg(stats())
-        .join(
-            de_means(vec![col("grade")]),
-            [col("grade")],
-            [col("grade")],
-            JoinArgs::new(JoinType::Left),
-        );
+    let overall = rows.group_by([col("grade")]).agg(stats()).join(
+        de_means(vec![col("grade")]),
+        [col("grade")],
+        [col("grade")],
+        JoinArgs::new(JoinType::Left),
+    );
 
     let order = |level: &str, key: Expr| {
         let mut c = vec![lit(level).alias("level"), key.alias("key"), col("grade")];

@@ -175,7 +175,13 @@ pub fn write_report(
         })
         .collect();
     let scatter = charts.join("scatter.svg");
-    scatter_chart(&scatter, &points, &zone_names, "Predicted against sampled", &label)?;
+    scatter_chart(
+        &scatter,
+        &points,
+        &zone_names,
+        "Predicted against sampled",
+        &label,
+    )?;
 
     // Map of the bias per drawpoint (every drawpoint of the scene; unmatched ones hollow).
     let (dp_names, dp_bias) = (strings(&dps, "key"), floats(&dps, "bias"));
@@ -374,7 +380,11 @@ fn table(h: &mut String, df: &DataFrame, what: &str) {
     }
     h.push_str("</tr>");
     for (k, key) in keys.iter().enumerate() {
-        let _ = write!(h, "<tr><td>{}</td>", esc(if key.is_empty() { "(none)" } else { key }));
+        let _ = write!(
+            h,
+            "<tr><td>{}</td>",
+            esc(if key.is_empty() { "(none)" } else { key })
+        );
         for (c, v) in values.iter().enumerate() {
             // n and the dilution-entry tonnes are whole numbers.
             let cell = if (c == 0 || c == cols.len() - 1) && v[k].is_finite() {

@@ -82,7 +82,12 @@ fn run_scenario(run_dir: &Path) -> Result<Scenario> {
 }
 
 /// The grades both tables hold, and the one summarised.
-fn grades(scene: &Scene, sampled: &[String], sc: &Scenario, asked: Option<&str>) -> Result<(Vec<String>, String)> {
+fn grades(
+    scene: &Scene,
+    sampled: &[String],
+    sc: &Scenario,
+    asked: Option<&str>,
+) -> Result<(Vec<String>, String)> {
     let both: Vec<String> = sampled
         .iter()
         .filter(|g| scene.blocks.grade_names.contains(g))
@@ -96,7 +101,10 @@ fn grades(scene: &Scene, sampled: &[String], sc: &Scenario, asked: Option<&str>)
     }
     let main = match asked {
         Some(g) if both.iter().any(|b| b == g) => g.to_string(),
-        Some(g) => bail!("grade {g:?} is not sampled in the records (they hold {})", both.join(", ")),
+        Some(g) => bail!(
+            "grade {g:?} is not sampled in the records (they hold {})",
+            both.join(", ")
+        ),
         None => match &sc.dilution.grade {
             Some(g) if both.contains(g) => g.clone(),
             _ => both[0].clone(),
@@ -245,7 +253,10 @@ pub(super) fn calibrate_cmd(a: CalibrateArgs) -> Result<ExitCode> {
     profile_chart(
         &a.out.join("profiles.svg"),
         &profiles,
-        &format!("Calibration profiles: {} RMSE against each factor", report.grade),
+        &format!(
+            "Calibration profiles: {} RMSE against each factor",
+            report.grade
+        ),
     )?;
     for f in &report.parameters {
         println!(

@@ -637,8 +637,14 @@ impl Bins {
     pub fn cell_rect(&self, c: usize) -> [[f64; 2]; 2] {
         let (i, j) = ((c % self.n[0]) as f64, (c / self.n[0]) as f64);
         [
-            [self.origin[0] + i * self.cell, self.origin[0] + (i + 1.0) * self.cell],
-            [self.origin[1] + j * self.cell, self.origin[1] + (j + 1.0) * self.cell],
+            [
+                self.origin[0] + i * self.cell,
+                self.origin[0] + (i + 1.0) * self.cell,
+            ],
+            [
+                self.origin[1] + j * self.cell,
+                self.origin[1] + (j + 1.0) * self.cell,
+            ],
         ]
     }
 

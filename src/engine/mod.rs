@@ -278,7 +278,12 @@ impl<'a> Engine<'a> {
     /// Rows (ascending) of the markers binned in the cells that the IMZs `which` can
     /// reach (their plan bounding boxes and one cell around), into `self.rows`; returns the
     /// cells.
-    fn rows_near(&mut self, geoms: &[ImzGeom], which: &[usize], mut cells: Vec<usize>) -> Vec<usize> {
+    fn rows_near(
+        &mut self,
+        geoms: &[ImzGeom],
+        which: &[usize],
+        mut cells: Vec<usize>,
+    ) -> Vec<usize> {
         for &d in which {
             let g = &geoms[d];
             let r = g.max_radius();
@@ -743,7 +748,13 @@ impl<'a> Engine<'a> {
                 .for_each(|m| *m = Mobilised::default());
         }
         let geoms: Vec<ImzGeom> = self.imzs.iter().map(|m| m.geom.clone()).collect();
-        let grid = ImzGrid::build(&geoms, which, self.extent.0, self.extent.1, self.grid_cell());
+        let grid = ImzGrid::build(
+            &geoms,
+            which,
+            self.extent.0,
+            self.extent.1,
+            self.grid_cell(),
+        );
         self.rows_near(&geoms, which, Vec::new());
         let mk = &self.markers;
         for &k in &self.rows {

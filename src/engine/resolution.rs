@@ -122,7 +122,11 @@ fn drawpoint_spacing(scene: &Scene) -> f64 {
 /// Mean fragment size d̄ over the blocks, m (NaN without blocks).
 fn mean_frag(scene: &Scene) -> f64 {
     let f = &scene.blocks.frag;
-    let ok: Vec<f64> = f.iter().copied().filter(|d| d.is_finite() && *d > 0.0).collect();
+    let ok: Vec<f64> = f
+        .iter()
+        .copied()
+        .filter(|d| d.is_finite() && *d > 0.0)
+        .collect();
     if ok.is_empty() {
         f64::NAN
     } else {
@@ -159,7 +163,11 @@ pub fn resolve(scene: &Scene, sc: &Scenario) -> ResolvedResolution {
                 (s0 * m).min(cap).max(s0)
             } else {
                 // Finer: bounded by the fragments, never above s0.
-                let floor = if dbar.is_finite() { FRAG_FRACTION * dbar } else { 0.0 };
+                let floor = if dbar.is_finite() {
+                    FRAG_FRACTION * dbar
+                } else {
+                    0.0
+                };
                 (s0 * m).max(floor).min(s0)
             };
             (h, Some(s), (s / s0).max(1.0))

@@ -16,8 +16,8 @@ use caveflow::analysis::records::sample;
 use caveflow::analysis::sweep::keep_periods;
 use caveflow::engine::Engine;
 use caveflow::model::demo::{self, DemoScale};
-use caveflow::model::scenario::Calibration;
 use caveflow::model::records::ProductionRecords;
+use caveflow::model::scenario::Calibration;
 use caveflow::model::{Scenario, Scene};
 use caveflow::output::records::write_records;
 use polars::prelude::*;
@@ -120,7 +120,12 @@ fn calibrate_recovers_the_hidden_fragment_factor_and_cuts_rmse() {
         f.value,
         f.se
     );
-    assert!(f.rmse_after < 0.9 * f.rmse_before, "{} → {}", f.rmse_before, f.rmse_after);
+    assert!(
+        f.rmse_after < 0.9 * f.rmse_before,
+        "{} → {}",
+        f.rmse_before,
+        f.rmse_after
+    );
     assert!(report.rmse_after < report.rmse_before);
     assert!(
         f.rmse_after <= 1.25 * noise_rms,
@@ -145,28 +150,50 @@ fn reconcile_writes_the_table_and_a_self_contained_report() {
     let (scene, sc) = reduced();
     caveflow::output::inputs::write_scene(dir.path(), &scene, &sc).unwrap();
     let run = caveflow(&["run", "scenario.toml", "--out", "run"], dir.path());
-    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
     let mut truth = Calibration::default();
     truth.frag_factor.insert("urad".into(), TRUE_FACTOR);
     let (records, _) = synthetic(&scene, &sc, &truth);
     write_records(&dir.path().join("records.csv"), &records, &scene.drawpoints).unwrap();
     let out = caveflow(&["reconcile", "run", "records.csv"], dir.path());
     let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(out.status.success(), "{stdout}{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{stdout}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     assert!(stdout.contains("RMSE"), "{stdout}");
     let rec = dir.path().join("run/reconcile");
     let metrics = ParquetReader::new(std::fs::File::open(rec.join("reconcile.parquet")).unwrap())
         .finish()
         .unwrap();
-    let levels: Vec<&str> = metrics.column("level").unwrap().str().unwrap().iter().flatten().collect();
+    let levels: Vec<&str> = metrics
+        .column("level")
+        .unwrap()
+        .str()
+        .unwrap()
+        .iter()
+        .flatten()
+        .collect();
     assert_eq!(levels.iter().filter(|l| **l == "overall").count(), 1);
     // Every drawpoint that drew has a row (a drawpoint idle all along has nothing to match).
     let drawn = levels.iter().filter(|l| **l == "drawpoint").count();
-    assert!(drawn > 0 && drawn <= scene.drawpoints.len() - idle_drawpoints(&scene), "{drawn}");
+    assert!(
+        drawn > 0 && drawn <= scene.drawpoints.len() - idle_drawpoints(&scene),
+        "{drawn}"
+    );
     assert!(levels.contains(&"zone"));
     let html = std::fs::read_to_string(rec.join("report.html")).unwrap();
     // Every chart is inline: scatter, map, worst drawpoints, every drawpoint.
-    assert!(html.matches("<svg").count() >= 4, "{} charts", html.matches("<svg").count());
+    assert!(
+        html.matches("<svg").count() >= 4,
+        "{} charts",
+        html.matches("<svg").count()
+    );
     for chart in ["scatter.svg", "bias_map.svg", "worst.svg", "all.svg"] {
         let svg = std::fs::read_to_string(rec.join("charts").join(chart)).unwrap();
         let marks = svg.matches("<circle").count() + svg.matches("<polyline").count();
@@ -174,7 +201,9 @@ fn reconcile_writes_the_table_and_a_self_contained_report() {
     }
     // Self-contained: no script, stylesheet, frame, image or font fetched from anywhere
     // (the SVG namespace URI is an identifier, not a fetch).
-    for fetch in ["<script", "<link", "<iframe", "<img", "@import", "url(", "src=", "href="] {
+    for fetch in [
+        "<script", "<link", "<iframe", "<img", "@import", "url(", "src=", "href=",
+    ] {
         assert!(!html.contains(fetch), "the page has {fetch:?}");
     }
 }

@@ -1190,7 +1190,10 @@ fn active_set_pass_matches_the_pass_over_every_marker() {
         s.dz -= s.perc;
     };
     e.with_last_field(|field| {
-        for extra in [None, Some(&hook as &(dyn Fn(&Markers, usize, &mut Step) + Sync))] {
+        for extra in [
+            None,
+            Some(&hook as &(dyn Fn(&Markers, usize, &mut Step) + Sync)),
+        ] {
             let (mut a, mut b) = (e.markers.clone(), e.markers.clone());
             let mut da = move_markers(&mut a, field, extra);
             let mut db = move_rows(&mut b, field, extra, &all);
@@ -1246,7 +1249,13 @@ fn idle_markers_are_not_stepped() {
         let ex = out.unwrap().extraction;
         let rows: Vec<(i64, u64, u64)> = (0..ex.period.len())
             .filter(|&i| ex.drawpoint[i] == 1)
-            .map(|i| (ex.period[i], ex.marker_tonnes[i].to_bits(), ex.markers[i] as u64))
+            .map(|i| {
+                (
+                    ex.period[i],
+                    ex.marker_tonnes[i].to_bits(),
+                    ex.markers[i] as u64,
+                )
+            })
             .collect();
         (mobilised, steps, rows)
     };

@@ -1,8 +1,8 @@
 //! The one integration-test binary (ripgrep/polars style): one module per layer.
 
-mod calibration;
 #[cfg(feature = "analysis")]
 mod backanalysis;
+mod calibration;
 mod cli;
 mod dataset;
 mod engine;

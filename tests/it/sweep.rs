@@ -94,7 +94,10 @@ fn automatic_resolution_meets_its_target_on_the_demo() {
         sc.resolution.target_grade_rmse = Some(t);
         resolve(&scene, &sc)
     };
-    let chosen: Vec<_> = [0.05, 0.01, 0.002, 0.0005, 1e-4].iter().map(|&t| at(t)).collect();
+    let chosen: Vec<_> = [0.05, 0.01, 0.002, 0.0005, 1e-4]
+        .iter()
+        .map(|&t| at(t))
+        .collect();
     for w in chosen.windows(2) {
         let (loose, tight) = (&w[0], &w[1]);
         assert!(tight.layer_thickness <= loose.layer_thickness, "{chosen:?}");

@@ -15,8 +15,8 @@ use plotters::style::text_anchor::{HPos, VPos};
 
 use super::{
     axis_title_style, draw_axes, draw_grid, draw_title, ensure_font, put_text, text, write_chart,
-    x_ticks, y_ticks, AxisLabels, ChartError, DrawError, Frame, Pen, Render, Ticks,
-    AXIS_COLOUR, TITLE_H,
+    x_ticks, y_ticks, AxisLabels, ChartError, DrawError, Frame, Pen, Render, Ticks, AXIS_COLOUR,
+    TITLE_H,
 };
 
 /// Zone colours (Tableau 10), repeated when there are more zones.
@@ -200,7 +200,11 @@ pub struct MapPoint {
 
 /// Diverging colour of t in [−1, 1]: blue (−1), white (0), red (+1).
 pub fn diverging(t: f64) -> RGBColor {
-    let t = if t.is_finite() { t.clamp(-1.0, 1.0) } else { 0.0 };
+    let t = if t.is_finite() {
+        t.clamp(-1.0, 1.0)
+    } else {
+        0.0
+    };
     let (end, w) = if t < 0.0 {
         ((33.0, 102.0, 172.0), -t)
     } else {
@@ -362,7 +366,10 @@ pub fn profile_chart(path: &Path, profiles: &[Profile], title: &str) -> Result<(
         .iter()
         .enumerate()
         .map(|(k, p)| {
-            let (mut x, mut y) = ((p.start.min(p.fitted), p.start.max(p.fitted)), (f64::INFINITY, 0.0f64));
+            let (mut x, mut y) = (
+                (p.start.min(p.fitted), p.start.max(p.fitted)),
+                (f64::INFINITY, 0.0f64),
+            );
             for &(v, e) in &p.points {
                 if v.is_finite() && e.is_finite() {
                     x = (x.0.min(v), x.1.max(v));
@@ -400,7 +407,10 @@ struct Profiles {
 
 impl Render for Profiles {
     fn size(&self) -> (u32, u32) {
-        (PANEL_W * self.profiles.len().max(1) as u32, TITLE_H + PANEL_H)
+        (
+            PANEL_W * self.profiles.len().max(1) as u32,
+            TITLE_H + PANEL_H,
+        )
     }
 
     fn draw<DB: DrawingBackend>(

@@ -175,7 +175,13 @@ impl Render for SweepPlot {
             if p.is_auto {
                 let d = 10;
                 root.draw(&PathElement::new(
-                    vec![(c.0, c.1 - d), (c.0 + d, c.1), (c.0, c.1 + d), (c.0 - d, c.1), (c.0, c.1 - d)],
+                    vec![
+                        (c.0, c.1 - d),
+                        (c.0 + d, c.1),
+                        (c.0, c.1 + d),
+                        (c.0 - d, c.1),
+                        (c.0, c.1 - d),
+                    ],
                     AXIS_COLOUR.stroke_width(3),
                 ))?;
                 put_text(
@@ -253,7 +259,13 @@ impl Render for SweepPlot {
         put_text(root, "default resolution", (l + 586, y), &style, pen)?;
         let (ax, ay, d) = (l + 10, y + 24, 8);
         root.draw(&PathElement::new(
-            vec![(ax, ay - d), (ax + d, ay), (ax, ay + d), (ax - d, ay), (ax, ay - d)],
+            vec![
+                (ax, ay - d),
+                (ax + d, ay),
+                (ax, ay + d),
+                (ax - d, ay),
+                (ax, ay - d),
+            ],
             AXIS_COLOUR.stroke_width(3),
         ))?;
         put_text(
