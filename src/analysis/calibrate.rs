@@ -45,7 +45,9 @@ use std::path::Path;
 use polars::prelude::*;
 use rayon::prelude::*;
 
-use super::reconcile::{predicted_frame, reconcile, Frames, ReconcileError, Settings};
+use super::reconcile::{
+    floats, predicted_frame, reconcile, strings, Frames, ReconcileError, Settings,
+};
 use crate::engine::{Engine, EngineError};
 use crate::model::scenario::Calibration;
 use crate::model::{Scenario, Scene};
@@ -217,26 +219,27 @@ impl Problem<'_> {
             dilution: None,
         };
         let r = reconcile(&frames, &settings)?;
-        let by_zone = r
-            .rows
+        // Σ e² and n from the metrics reconcile already made: Σ e² = n RMSE².
+        let sse = |n: f64, rmse: f64| (n * rmse * rmse, n as usize);
+        let zone_rows = r
+            .metrics
             .clone()
             .lazy()
-            .group_by([col("zone")])
-            .agg([
-                (col("error") * col("error")).sum().alias("sse"),
-                len().cast(DataType::Int64).alias("n"),
-            ])
+            .filter(col("level").eq(lit("zone")))
             .collect()?;
-        let zones_col = by_zone.column("zone")?.str()?.clone();
-        let sse = by_zone.column("sse")?.f64()?.clone();
-        let n = by_zone.column("n")?.i64()?.clone();
-        let mut zones = BTreeMap::new();
-        let mut all = (0.0, 0usize);
-        for k in 0..by_zone.height() {
-            let (s, c) = (sse.get(k).unwrap_or(0.0), n.get(k).unwrap_or(0) as usize);
-            zones.insert(zones_col.get(k).unwrap_or("").to_string(), (s, c));
-            all = (all.0 + s, all.1 + c);
-        }
+        let zones = strings(&zone_rows, "key")
+            .into_iter()
+            .zip(
+                floats(&zone_rows, "n")
+                    .into_iter()
+                    .zip(floats(&zone_rows, "rmse")),
+            )
+            .map(|(z, (n, rmse))| (z, sse(n, rmse)))
+            .collect();
+        let all = match r.metric("overall", "all", &self.grade, "n") {
+            Some(n) => sse(n, r.overall_rmse(&self.grade)),
+            None => (0.0, 0),
+        };
         Ok(Eval { zones, all })
     }
 
@@ -363,32 +366,41 @@ pub fn calibrate(
             .collect()
     };
     let start = p.scenario.calibration.clone();
-    let total = cfg.coarse.len()
-        + cfg.refine.len()
+    // 1. Coarse: every zone at the same value. The start runs in the same parallel batch,
+    // and a grid value that is the start itself shares its run.
+    let coarse: Vec<Calibration> = if cfg.zones.is_empty() {
+        Vec::new()
+    } else {
+        cfg.coarse
+            .iter()
+            .map(|&f| zones_at(&start, &cfg.zones, |_| f))
+            .collect()
+    };
+    let first: Vec<Calibration> = std::iter::once(start.clone())
+        .chain(coarse.iter().filter(|c| **c != start).cloned())
+        .collect();
+    let total = first.len()
+        + usize::from(!cfg.zones.is_empty()) * cfg.refine.len()
         + usize::from(cfg.fit_n1) * cfg.global.len()
         + usize::from(cfg.fit_friction) * cfg.global.len()
-        + 2;
+        + 1;
     let mut runs = 0;
     let mut tick = |k: usize, runs: &mut usize| {
         *runs += k;
         progress(*runs, total);
     };
-
-    let before = p.eval(&start)?;
-    tick(1, &mut runs);
+    let first_evals = p.eval_all(&first)?;
+    tick(first.len(), &mut runs);
+    let before = first_evals[0].clone();
     let mut cal = start.clone();
     let mut profiles: BTreeMap<String, Profile> = BTreeMap::new();
     let start_of = |z: &str| start.frag_factor.get(z).copied().unwrap_or(1.0);
 
     if !cfg.zones.is_empty() {
-        // 1. Coarse: every zone at the same value.
-        let cands: Vec<Calibration> = cfg
-            .coarse
+        let evals: Vec<&Eval> = coarse
             .iter()
-            .map(|&f| zones_at(&start, &cfg.zones, |_| f))
+            .map(|c| &first_evals[first.iter().position(|f| f == c).expect("in the batch")])
             .collect();
-        let evals = p.eval_all(&cands)?;
-        tick(cands.len(), &mut runs);
         for z in &cfg.zones {
             let prof = profiles.entry(format!("frag_factor.{z}")).or_default();
             prof.push((start_of(z), before.of(zone_rows[z].as_deref())));
