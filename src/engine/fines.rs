@@ -240,16 +240,7 @@ mod tests {
 
     #[test]
     fn percolated_distances_over_many_markers_match_the_formula() {
-        let geom = ImzGeom {
-            x: 0.0,
-            y: 0.0,
-            z0: 0.0,
-            h: 1.0,
-            radius: vec![4.0; 200],
-        };
-        let motion: Vec<DiskMotion> = (0..200).map(|_| disk(4.0)).collect();
-        let geoms = vec![geom];
-        let grid = ImzGrid::build(&geoms, &[0], [-5.0, -5.0], [10.0, 10.0], 1.0);
+        let (geoms, motion, grid) = field_parts(vec![4.0; 200]);
         let motion_ref: Vec<&[DiskMotion]> = vec![&motion[..]];
         let field = MotionField {
             geoms: &geoms,
@@ -296,13 +287,14 @@ mod tests {
 
     /// A single IMZ: disks of h = 1 m with radii 1, 2, 4, 4 (narrowing to the base), axis at
     /// the origin, base z = 0; shear band 10 m, so every marker is in the shear annulus.
-    fn field_parts() -> (Vec<ImzGeom>, Vec<DiskMotion>, ImzGrid) {
+    /// One IMZ on the axis with disks 1 m thick of these radii, base at z = 0.
+    fn field_parts(radius: Vec<f64>) -> (Vec<ImzGeom>, Vec<DiskMotion>, ImzGrid) {
         let geom = ImzGeom {
             x: 0.0,
             y: 0.0,
             z0: 0.0,
             h: 1.0,
-            radius: vec![1.0, 2.0, 4.0, 4.0],
+            radius,
         };
         let motion: Vec<DiskMotion> = geom.radius.iter().map(|&r| disk(r)).collect();
         let grid = ImzGrid::build(&[geom.clone()], &[0], [-5.0, -5.0], [10.0, 10.0], 1.0);
@@ -314,7 +306,7 @@ mod tests {
     /// the opening can pass the base and is drawn.
     #[test]
     fn fines_move_only_down_and_stall_at_the_imz_limit() {
-        let (geoms, motion, grid) = field_parts();
+        let (geoms, motion, grid) = field_parts(vec![1.0, 2.0, 4.0, 4.0]);
         let motion_ref: Vec<&[DiskMotion]> = vec![&motion[..]];
         let field = MotionField {
             geoms: &geoms,

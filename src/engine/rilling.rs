@@ -209,16 +209,13 @@ pub fn rill(st: &mut RillState) -> RillStats {
             continue;
         }
         // The parcel that would move: the top of the cell's highest column.
-        let Some(c) = columns(q).max_by(|&a, &b| {
-            let (ha, hb) = (
-                top(&stacks, &in_situ, st.markers, a),
-                top(&stacks, &in_situ, st.markers, b),
-            );
-            ha.total_cmp(&hb).then(b.cmp(&a))
-        }) else {
+        // Columns by the height of their tops; ties go to the lower index either way.
+        let height = |k: usize| top(&stacks, &in_situ, st.markers, k);
+        let Some(c) = columns(q).max_by(|&a, &b| height(a).total_cmp(&height(b)).then(b.cmp(&a)))
+        else {
             continue;
         };
-        let h_c = top(&stacks, &in_situ, st.markers, c);
+        let h_c = height(c);
         let from_site = stacks[c]
             .last()
             .is_none_or(|&k| st.markers.z[k] + 0.5 * s < in_situ[c]);
@@ -249,16 +246,12 @@ pub fn rill(st: &mut RillState) -> RillStats {
                 }
                 // The parcel goes to the lowest column of the cell, and must come to rest
                 // at least half a parcel lower, in flowable ground.
-                let Some(n) = columns(nq).min_by(|&a, &b| {
-                    let (ha, hb) = (
-                        top(&stacks, &in_situ, st.markers, a),
-                        top(&stacks, &in_situ, st.markers, b),
-                    );
-                    ha.total_cmp(&hb).then(a.cmp(&b))
-                }) else {
+                let Some(n) =
+                    columns(nq).min_by(|&a, &b| height(a).total_cmp(&height(b)).then(a.cmp(&b)))
+                else {
                     continue;
                 };
-                let h_low = top(&stacks, &in_situ, st.markers, n);
+                let h_low = height(n);
                 if h_c - h_low < 1.5 * s {
                     continue;
                 }
