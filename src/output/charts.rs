@@ -397,14 +397,29 @@ enum Pen {
 trait Render {
     /// Image size, px.
     fn size(&self) -> (u32, u32);
-    /// Draw the whole image onto `root`, setting text with `pen`.
-    fn draw<DB: DrawingBackend>(
+    /// The title, set centred over the top of the image.
+    fn title(&self) -> &str;
+    /// Draw everything below the title onto `root`, setting text with `pen`.
+    fn draw_body<DB: DrawingBackend>(
         &self,
         root: &DrawingArea<DB, Shift>,
         pen: Pen,
     ) -> Result<(), DrawError>
     where
         DB::ErrorType: 'static;
+    /// Draw the whole image: a white page, the title, the body.
+    fn draw<DB: DrawingBackend>(
+        &self,
+        root: &DrawingArea<DB, Shift>,
+        pen: Pen,
+    ) -> Result<(), DrawError>
+    where
+        DB::ErrorType: 'static,
+    {
+        root.fill(&WHITE)?;
+        draw_title(root, self.title(), self.size().0, pen)?;
+        self.draw_body(root, pen)
+    }
 }
 
 /// Registers the bundled font with plotters once; false if it failed to parse.
@@ -1302,7 +1317,11 @@ impl Render for SectionPlot<'_> {
         self.size
     }
 
-    fn draw<DB: DrawingBackend>(
+    fn title(&self) -> &str {
+        self.title
+    }
+
+    fn draw_body<DB: DrawingBackend>(
         &self,
         root: &DrawingArea<DB, Shift>,
         pen: Pen,
@@ -1311,8 +1330,6 @@ impl Render for SectionPlot<'_> {
         DB::ErrorType: 'static,
     {
         let (s, f) = (self.section, &self.frame);
-        root.fill(&WHITE)?;
-        draw_title(root, self.title, self.size.0, pen)?;
 
         let extent = [
             f.px((s.x_range.0, s.z_range.1)),
@@ -1677,7 +1694,11 @@ impl Render for GradePage<'_> {
         self.size
     }
 
-    fn draw<DB: DrawingBackend>(
+    fn title(&self) -> &str {
+        &self.title
+    }
+
+    fn draw_body<DB: DrawingBackend>(
         &self,
         root: &DrawingArea<DB, Shift>,
         pen: Pen,
@@ -1685,8 +1706,6 @@ impl Render for GradePage<'_> {
     where
         DB::ErrorType: 'static,
     {
-        root.fill(&WHITE)?;
-        draw_title(root, &self.title, self.size.0, pen)?;
         self.legend.draw(root, TITLE_H as i32, pen)?;
         let first = self.frame(0);
         let ticks = (x_ticks(&first)?, y_ticks(&first)?);

@@ -14,9 +14,8 @@ use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, VPos};
 
 use super::{
-    axis_title_style, draw_axes, draw_grid, draw_title, ensure_font, put_text, text, write_chart,
-    x_ticks, y_ticks, AxisLabels, ChartError, DrawError, Frame, Pen, Render, Ticks, AXIS_COLOUR,
-    TITLE_H,
+    axis_title_style, draw_axes, draw_grid, ensure_font, put_text, text, write_chart, x_ticks,
+    y_ticks, AxisLabels, ChartError, DrawError, Frame, Pen, Render, Ticks, AXIS_COLOUR, TITLE_H,
 };
 
 /// Zone colours (Tableau 10), repeated when there are more zones.
@@ -98,19 +97,14 @@ struct Scatter {
     grade_label: String,
 }
 
-/// White page, title, and the grid of each frame; the ticks of the first frame.
-fn open<DB: DrawingBackend>(
+/// The grid of each frame; the ticks of the first frame.
+fn grids<DB: DrawingBackend>(
     root: &DrawingArea<DB, Shift>,
-    title: &str,
-    width: u32,
     frames: &[Frame],
-    pen: Pen,
 ) -> Result<(Ticks, Ticks), DrawError>
 where
     DB::ErrorType: 'static,
 {
-    root.fill(&WHITE)?;
-    draw_title(root, title, width, pen)?;
     let mut first = None;
     for f in frames {
         let (xt, yt) = (x_ticks(f)?, y_ticks(f)?);
@@ -129,7 +123,11 @@ impl Render for Scatter {
         (SIDE + RIGHT as u32, SIDE)
     }
 
-    fn draw<DB: DrawingBackend>(
+    fn title(&self) -> &str {
+        &self.title
+    }
+
+    fn draw_body<DB: DrawingBackend>(
         &self,
         root: &DrawingArea<DB, Shift>,
         pen: Pen,
@@ -138,7 +136,7 @@ impl Render for Scatter {
         DB::ErrorType: 'static,
     {
         let f = &self.frame;
-        let (xt, yt) = open(root, &self.title, self.size().0, &[*f], pen)?;
+        let (xt, yt) = grids(root, &[*f])?;
         root.draw(&PathElement::new(
             f.path(&[(f.x.0, f.y.0), (f.x.1, f.y.1)]),
             AXIS_COLOUR.stroke_width(1),
@@ -273,7 +271,11 @@ impl Render for ErrorMap {
         (LEFT as u32 + self.frame.size.0 + RIGHT as u32 + 20, SIDE)
     }
 
-    fn draw<DB: DrawingBackend>(
+    fn title(&self) -> &str {
+        &self.title
+    }
+
+    fn draw_body<DB: DrawingBackend>(
         &self,
         root: &DrawingArea<DB, Shift>,
         pen: Pen,
@@ -282,7 +284,7 @@ impl Render for ErrorMap {
         DB::ErrorType: 'static,
     {
         let f = &self.frame;
-        let (xt, yt) = open(root, &self.title, self.size().0, &[*f], pen)?;
+        let (xt, yt) = grids(root, &[*f])?;
         let small = text(10.0, HPos::Left, VPos::Center);
         for p in &self.points {
             let c = f.px((p.x, p.y));
@@ -413,7 +415,11 @@ impl Render for Profiles {
         )
     }
 
-    fn draw<DB: DrawingBackend>(
+    fn title(&self) -> &str {
+        &self.title
+    }
+
+    fn draw_body<DB: DrawingBackend>(
         &self,
         root: &DrawingArea<DB, Shift>,
         pen: Pen,
@@ -421,7 +427,7 @@ impl Render for Profiles {
     where
         DB::ErrorType: 'static,
     {
-        open(root, &self.title, self.size().0, &self.frames, pen)?;
+        grids(root, &self.frames)?;
         for (p, f) in self.profiles.iter().zip(&self.frames) {
             let (xt, yt) = (x_ticks(f)?, y_ticks(f)?);
             let (lo, hi) = p.ci95;

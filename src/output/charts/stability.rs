@@ -9,8 +9,8 @@ use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, VPos};
 
 use super::{
-    draw_title, ensure_font, put_text, text, write_chart, ChartError, DrawError, Pen, Render,
-    AXIS_COLOUR, TICK, TICK_GAP, TITLE_H,
+    ensure_font, put_text, text, write_chart, ChartError, DrawError, Pen, Render, AXIS_COLOUR,
+    TICK, TICK_GAP, TITLE_H,
 };
 use crate::engine::stability::Validity;
 
@@ -122,7 +122,11 @@ impl Render for StabilityPlot<'_> {
         )
     }
 
-    fn draw<DB: DrawingBackend>(
+    fn title(&self) -> &str {
+        &self.title
+    }
+
+    fn draw_body<DB: DrawingBackend>(
         &self,
         root: &DrawingArea<DB, Shift>,
         pen: Pen,
@@ -130,8 +134,6 @@ impl Render for StabilityPlot<'_> {
     where
         DB::ErrorType: 'static,
     {
-        root.fill(&WHITE)?;
-        draw_title(root, &self.title, WIDTH, pen)?;
         let (l, r) = (LABEL_W as i32, (WIDTH - RIGHT) as i32);
         let px = |b: &RegionBand, v: f64| l + (frac(b, v) * f64::from(r - l)).round() as i32;
         for (k, b) in self.bands.iter().enumerate() {

@@ -14,10 +14,10 @@ use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, VPos};
 
 use super::{
-    axis_title_style, draw_axes, draw_title, ensure_font, finite_runs, nice_ticks, put_text, text,
-    text_width, tick_style, widest_tick_label, write_chart, x_ticks, y_ticks, AxisLabels,
-    ChartError, DrawError, Frame, Legend, LegendEntry, Pen, Render, Sample, FRAME_COLOUR,
-    IMZ_COLOUR, MAX_SIDE, MIN_W, TICK, TICK_GAP, TITLE_H,
+    axis_title_style, draw_axes, ensure_font, finite_runs, nice_ticks, put_text, text, text_width,
+    tick_style, widest_tick_label, write_chart, x_ticks, y_ticks, AxisLabels, ChartError,
+    DrawError, Frame, Legend, LegendEntry, Pen, Render, Sample, FRAME_COLOUR, IMZ_COLOUR, MAX_SIDE,
+    MIN_W, TICK, TICK_GAP, TITLE_H,
 };
 use super::{AXIS_COLOUR, AXIS_TITLE_W, DP_LINE, SEC_BOTTOM, SEC_RIGHT, SEC_TOP};
 
@@ -208,7 +208,11 @@ impl Render for StressPlot<'_> {
         self.size
     }
 
-    fn draw<DB: DrawingBackend>(
+    fn title(&self) -> &str {
+        &self.chart.title
+    }
+
+    fn draw_body<DB: DrawingBackend>(
         &self,
         root: &DrawingArea<DB, Shift>,
         pen: Pen,
@@ -217,8 +221,6 @@ impl Render for StressPlot<'_> {
         DB::ErrorType: 'static,
     {
         let (c, f) = (self.chart, &self.frame);
-        root.fill(&WHITE)?;
-        draw_title(root, &c.title, self.size.0, pen)?;
         let h = 0.5 * c.cell;
         for (&(u, v), &val) in c.points.iter().zip(&c.values) {
             let colour = if val.is_finite() {

@@ -11,9 +11,8 @@ use plotters::style::text_anchor::{HPos, VPos};
 
 use super::stability::log_ticks;
 use super::{
-    axis_title_style, draw_title, ensure_font, put_text, text, write_chart, ChartError, DrawError,
-    Pen, Render, AXIS_COLOUR, GRID_COLOUR, PREDICTED_COLOUR, SAMPLED_COLOUR, TICK, TICK_GAP,
-    TITLE_H,
+    axis_title_style, ensure_font, put_text, text, write_chart, ChartError, DrawError, Pen, Render,
+    AXIS_COLOUR, GRID_COLOUR, PREDICTED_COLOUR, SAMPLED_COLOUR, TICK, TICK_GAP, TITLE_H,
 };
 
 /// One run on the chart.
@@ -106,7 +105,11 @@ impl Render for SweepPlot {
         (WIDTH, HEIGHT)
     }
 
-    fn draw<DB: DrawingBackend>(
+    fn title(&self) -> &str {
+        &self.title
+    }
+
+    fn draw_body<DB: DrawingBackend>(
         &self,
         root: &DrawingArea<DB, Shift>,
         pen: Pen,
@@ -114,8 +117,6 @@ impl Render for SweepPlot {
     where
         DB::ErrorType: 'static,
     {
-        root.fill(&WHITE)?;
-        draw_title(root, &self.title, WIDTH, pen)?;
         let (l, r) = (LEFT, WIDTH as i32 - RIGHT);
         let (t, b) = (TITLE_H as i32 + 10, HEIGHT as i32 - BOTTOM);
         let xt = log_ticks(self.x.0, self.x.1);
