@@ -58,7 +58,11 @@ fn marker_pass(c: &mut Criterion) {
                 g.bench_function(format!("{n}_markers/{threads}_threads"), |bench| {
                     bench.iter_batched_ref(
                         || e.markers.clone(),
-                        |mk| pool.install(|| move_rows(mk, field, None, &rows)),
+                        |mk| {
+                            pool.install(|| {
+                                move_rows(mk, std::slice::from_ref(field), None, &rows, None)
+                            })
+                        },
                         BatchSize::LargeInput,
                     )
                 });
@@ -70,7 +74,7 @@ fn marker_pass(c: &mut Criterion) {
 
 fn demo_run(c: &mut Criterion) {
     let mut scene = demo::henderson(DemoScale::Small, 42);
-    caveflow::analysis::sweep::keep_periods(&mut scene, 6);
+    scene.keep_periods(6);
     let sc = demo::scenario(DemoScale::Small, 42);
     let mut g = c.benchmark_group("demo_small_6_periods");
     g.sample_size(10);

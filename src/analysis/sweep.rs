@@ -122,6 +122,7 @@ fn times(default: &ResolvedResolution, mult: [f64; 3]) -> ResolvedResolution {
         layer_thickness: default.layer_thickness * mult[0],
         marker_spacing: default.marker_spacing * mult[1],
         draw_increment: default.draw_increment * mult[2],
+        max_marker_move: default.max_marker_move * mult[1],
     }
 }
 
@@ -138,6 +139,7 @@ fn run_at(
     sc.resolution.layer_thickness = Some(res.layer_thickness);
     sc.resolution.marker_spacing = Some(res.marker_spacing);
     sc.resolution.draw_increment = Some(res.draw_increment);
+    sc.resolution.max_marker_move = Some(res.max_marker_move);
     sc.flow.enforce_stability = false;
     let mut times = Vec::new();
     let mut last = None;
@@ -281,6 +283,8 @@ pub fn sweep(
         grid.push([1.0; 3]);
     }
     let mut res: Vec<ResolvedResolution> = grid.iter().map(|&m| times(&default, m)).collect();
+    // The reference moves every marker at every update (no multi-rate cadence).
+    res[0].max_marker_move = 0.0;
     // The automatic resolution, run as chosen (its multipliers are for the table).
     let auto_at = base
         .resolution
@@ -403,19 +407,6 @@ pub fn write_sweep_chart(path: &Path, rows: &[SweepRow], title: &str) -> Result<
         .find(|r| r.is_reference)
         .map_or(f64::NAN, |r| r.wall_s);
     sweep_chart(path, &points, ref_wall, title)
-}
-
-/// Keeps only the first `n` periods of the scene (a shorter scene for a quicker sweep).
-pub fn keep_periods(scene: &mut Scene, n: usize) {
-    let n = n.min(scene.periods.len());
-    scene.periods.id.truncate(n);
-    scene.periods.name.truncate(n);
-    scene.periods.days.truncate(n);
-    if let Some(s) = scene.periods.start.as_mut() {
-        s.truncate(n);
-    }
-    let nd = scene.schedule.n_drawpoints;
-    scene.schedule.tonnes.truncate(n * nd);
 }
 
 #[cfg(test)]

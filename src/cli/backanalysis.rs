@@ -12,7 +12,6 @@ use super::{load, progress, scenario, InputArgs};
 use crate::analysis::calibrate::{self, CalibrateConfig, Problem};
 use crate::analysis::reconcile::{self, records_frame, Frames, Settings};
 use crate::analysis::report::{write_report, ReportInfo};
-use crate::analysis::sweep::keep_periods;
 use crate::model::records::load_records;
 use crate::model::{Scenario, Scene};
 use crate::output::charts::{profile_chart, Profile};
@@ -193,7 +192,7 @@ pub(super) fn calibrate_cmd(a: CalibrateArgs) -> Result<ExitCode> {
         }
     };
     if let Some(n) = a.keep_periods {
-        keep_periods(&mut loaded.scene, n);
+        loaded.scene.keep_periods(n);
     }
     let scene = &loaded.scene;
     let (_, grade) = grades(scene, &records.grade_names, &sc, a.grade.as_deref())?;

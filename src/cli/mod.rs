@@ -106,6 +106,9 @@ pub struct RunArgs {
     /// written.
     #[arg(long, default_value_t = 1, value_name = "N")]
     pub checkpoint_every: usize,
+    /// Run only the first N periods of the schedule (a trial run).
+    #[arg(long, value_name = "N")]
+    pub keep_periods: Option<usize>,
 }
 
 /// Name of the checkpoint file in the output directory.
@@ -306,11 +309,14 @@ fn run(a: RunArgs) -> Result<ExitCode> {
             .build_global()
             .context("thread pool")?;
     }
-    let Some(loaded) = load(&sc) else {
+    let Some(mut loaded) = load(&sc) else {
         return Ok(ExitCode::from(1));
     };
     for w in &loaded.warnings {
         eprintln!("warning: {w}");
+    }
+    if let Some(n) = a.keep_periods {
+        loaded.scene.keep_periods(n);
     }
     let scene = &loaded.scene;
     let dir = &sc.outputs.dir;
@@ -325,6 +331,7 @@ fn run(a: RunArgs) -> Result<ExitCode> {
         for f in &loaded.inputs {
             text.push_str(&f.sha256);
         }
+        text.push_str(&format!("keep_periods={:?}", a.keep_periods));
         crate::io::sha256_hex(text.as_bytes())
     };
     let checkpoint = dir.join(CHECKPOINT_FILE);
@@ -509,7 +516,7 @@ fn sweep_cmd(mut a: SweepArgs) -> Result<ExitCode> {
         return Ok(ExitCode::from(1));
     };
     if let Some(n) = a.keep_periods {
-        sweep::keep_periods(&mut loaded.scene, n);
+        loaded.scene.keep_periods(n);
     }
     let cfg = SweepConfig {
         h: a.h,

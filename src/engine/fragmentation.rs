@@ -145,27 +145,29 @@ pub fn representative_size(d0: f64, w: f64, m: f64) -> f64 {
     d0 * (1.0 - w / (m + 1.0))
 }
 
-/// Updates the attrited fraction and representative size of every marker from its
-/// accumulated strain and work (parallel, pure per marker).
-pub fn attrite(mk: &mut Markers, bm: &BlockModel, p: &FragmentationParams) {
-    (
-        mk.frag.par_iter_mut(),
-        mk.attrited.par_iter_mut(),
-        &mk.frag0,
-        &mk.strain,
-        &mk.work,
-        &mk.block,
-    )
-        .into_par_iter()
-        .for_each(|(d, w, &d0, &g, &work, &b)| {
-            if g > 0.0 {
-                let wn = attrited_fraction(p, g, work, bm.tensile[b as usize]);
-                if wn > *w {
-                    *w = wn;
-                    *d = representative_size(d0, wn, p.product_exponent);
-                }
+/// Updates the attrited fraction and representative size of the marker rows `rows` (those
+/// that just moved: no other marker's strain or work changed) from their accumulated
+/// strain and work (parallel, pure per marker).
+pub fn attrite(mk: &mut Markers, bm: &BlockModel, p: &FragmentationParams, rows: &[u32]) {
+    let changed: Vec<(u32, f64, f64)> = rows
+        .par_iter()
+        .filter_map(|&k| {
+            let k = k as usize;
+            let (g, work, b) = (mk.strain[k], mk.work[k], mk.block[k] as usize);
+            if !(g > 0.0) {
+                return None;
             }
-        });
+            let wn = attrited_fraction(p, g, work, bm.tensile[b]);
+            (wn > mk.attrited[k]).then(|| {
+                let d = representative_size(mk.frag0[k], wn, p.product_exponent);
+                (k as u32, wn, d)
+            })
+        })
+        .collect();
+    for (k, w, d) in changed {
+        mk.attrited[k as usize] = w;
+        mk.frag[k as usize] = d;
+    }
 }
 
 /// The size distribution a marker stands for.

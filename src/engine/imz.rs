@@ -53,6 +53,8 @@
 
 use std::f64::consts::PI;
 
+use super::cadence::Window;
+
 use crate::model::BlockModel;
 
 /// Number of perimeter points sampled for stagnant properties (summary §3.3).
@@ -424,6 +426,13 @@ pub struct Imz {
     pub air: f64,
     /// True once the top could not open a new disk.
     pub blocked: bool,
+    /// Per cadence level L ≥ 1 (index L − 1), per disk: the void and starting radius of
+    /// the level's current window (`engine::cadence`).
+    pub windows: Vec<Vec<Window>>,
+    /// The last marker update at which this IMZ drew (0: never).
+    pub drew_at: u64,
+    /// The marker update at which the mobilised sums were last refreshed (0: never).
+    pub refreshed_at: u64,
 }
 
 /// IMZ parameters from the scenario.
@@ -469,6 +478,9 @@ impl Imz {
             reach: vec![f64::NAN],
             air: 0.0,
             blocked: false,
+            windows: Vec::new(),
+            drew_at: 0,
+            refreshed_at: 0,
         }
     }
 
@@ -702,6 +714,20 @@ impl Imz {
                 ..Default::default()
             };
         }
+    }
+
+    /// The motion over cadence level `level`'s window (≥ 1): the disks as they are now, with
+    /// the window's void Δv_i and starting radius R_i^old.
+    pub fn window_motion(&self, level: usize) -> Vec<DiskMotion> {
+        self.motion
+            .iter()
+            .zip(&self.windows[level - 1])
+            .map(|(m, w)| DiskMotion {
+                dv: w.dv,
+                r_old: w.r_old,
+                ..*m
+            })
+            .collect()
     }
 
     /// Fills the per-disk motion fields read by the marker pass (after the draw),

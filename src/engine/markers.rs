@@ -30,6 +30,8 @@
 
 use rayon::prelude::*;
 
+use super::cadence::Cadence;
+
 use super::imz::{DiskMotion, ImzGeom, ImzGrid};
 use crate::model::BlockModel;
 
@@ -146,6 +148,8 @@ pub struct Markers {
     pub attrited: Vec<f64>,
     /// Accumulated percolation distance, m (`engine::fines`).
     pub percolated: Vec<f64>,
+    /// Cadence level L: the marker steps once every 2^L updates (`engine::cadence`).
+    pub level: Vec<u8>,
 }
 
 /// Drawn markers: the moving columns plus who drew them and when.
@@ -186,6 +190,7 @@ impl Markers {
             self.frag0.len(),
             self.attrited.len(),
             self.percolated.len(),
+            self.level.len(),
         ]
         .iter()
         .all(|&l| l == n)
@@ -207,6 +212,7 @@ impl Markers {
         self.frag0.push(frag);
         self.attrited.push(0.0);
         self.percolated.push(0.0);
+        self.level.push(0);
     }
 
     /// Moves row `k` out (swap-remove) and appends it to `to`.
@@ -224,6 +230,7 @@ impl Markers {
         to.frag0.push(self.frag0.swap_remove(k));
         to.attrited.push(self.attrited.swap_remove(k));
         to.percolated.push(self.percolated.swap_remove(k));
+        to.level.push(self.level.swap_remove(k));
     }
 }
 
@@ -490,11 +497,16 @@ pub fn move_markers(
 /// the markers that a drawing IMZ can reach (the rows of the active cells of [`Bins`]).
 /// Every other marker would take a zero step, so the result is [`move_markers`]'s bit for
 /// bit. Parallel over chunks of rows, each writing its own window of the columns.
+///
+/// `fields[L]` is the motion of cadence level L (`engine::cadence`). Without a cadence
+/// every row steps by `fields[0]`; with `(cadence, u)` each row steps by its own level's
+/// field and then takes its next level for update `u`.
 pub fn move_rows(
     mk: &mut Markers,
-    field: &MotionField,
+    fields: &[MotionField],
     extra: Option<&(dyn Fn(&Markers, usize, &mut Step) + Sync)>,
     rows: &[u32],
+    cadence: Option<(&Cadence, u64)>,
 ) -> Vec<(usize, u32)> {
     if rows.is_empty() {
         return Vec::new();
@@ -511,7 +523,7 @@ pub fn move_rows(
             .par_iter()
             .map(|&k| {
                 let k = k as usize;
-                let mut s = field.step([mk.x[k], mk.y[k], mk.z[k]]);
+                let mut s = fields[0].step([mk.x[k], mk.y[k], mk.z[k]]);
                 extra(mk, k, &mut s);
                 s
             })
@@ -521,25 +533,25 @@ pub fn move_rows(
     let (hooked, steps) = (extra.is_some(), &steps[..]);
     let firsts: Vec<usize> = (0..chunks.len()).map(|c| c * chunk).collect();
     let drawn: Vec<Vec<(usize, u32)>> = (
-        chunks,
-        spans.clone(),
-        firsts,
+        (chunks, spans.clone(), firsts),
         windows(&mut mk.x, &spans),
         windows(&mut mk.y, &spans),
         windows(&mut mk.z, &spans),
         windows(&mut mk.strain, &spans),
         windows(&mut mk.work, &spans),
         windows(&mut mk.percolated, &spans),
+        windows(&mut mk.level, &spans),
     )
         .into_par_iter()
-        .map(|(rows, (lo, _), first, x, y, z, g, w, l)| {
+        .map(|((rows, (lo, _), first), x, y, z, g, w, l, lv)| {
             let mut drawn = Vec::new();
             for (n, &k) in rows.iter().enumerate() {
                 let i = k as usize - lo;
                 let s = if hooked {
                     steps[first + n]
                 } else {
-                    field.step([x[i], y[i], z[i]])
+                    let level = if cadence.is_some() { lv[i] } else { 0 };
+                    fields[level as usize].step([x[i], y[i], z[i]])
                 };
                 x[i] += s.dx;
                 y[i] += s.dy;
@@ -548,6 +560,10 @@ pub fn move_rows(
                 w[i] += s.work;
                 if hooked {
                     l[i] += s.perc;
+                }
+                if let Some((c, u)) = cadence {
+                    let moved = (s.dx * s.dx + s.dy * s.dy + s.dz * s.dz).sqrt();
+                    lv[i] = c.next_level(lv[i], moved, u);
                 }
                 if s.drawn_by != u32::MAX {
                     drawn.push((k as usize, s.drawn_by));

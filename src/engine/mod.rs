@@ -29,6 +29,7 @@
 //! factor cannot credit is reported as `shortfall_tonnes` and carried forward, so over a
 //! run the credited tonnes equal the schedule up to the final carry, which is reported.
 
+pub mod cadence;
 pub mod checkpoint;
 pub mod fines;
 pub mod fragmentation;
@@ -43,6 +44,7 @@ pub mod stress;
 use rayon::prelude::*;
 
 use crate::model::{Scenario, Scene};
+use cadence::Cadence;
 use fragmentation::SizeDist;
 use imz::{DiskMotion, Ground, Imz, ImzGeom, ImzGrid, ImzParams, Mobilised};
 use markers::{Bins, DrawnMarkers, Lattice, Markers, MotionField};
@@ -139,6 +141,8 @@ pub struct Engine<'a> {
     moved_cells: Vec<bool>,
     /// Whether every block column's air gap must be recomputed (ground caved, rilling).
     all_moved: bool,
+    /// How often each marker steps (`engine::cadence`).
+    cadence: Cadence,
     /// Air-gap height per block column (i + n_x j) as last recorded, m.
     air_col: Vec<f64>,
     /// Scratch: mass per block for the air gap, t.
@@ -168,16 +172,16 @@ impl<'a> Engine<'a> {
             r_cap: diag,
         };
         let dp = &scene.drawpoints;
+        let cadence = Cadence::new(res.max_marker_move);
         let imzs = (0..dp.len())
             .map(|d| {
-                Imz::new(
-                    d,
-                    dp.x[d],
-                    dp.y[d],
-                    dp.z[d],
-                    res.layer_thickness,
-                    dp.width[d],
-                )
+                let h = res.layer_thickness;
+                let mut m = Imz::new(d, dp.x[d], dp.y[d], dp.z[d], h, dp.width[d]);
+                m.windows = vec![Vec::new(); cadence.max_level as usize];
+                for w in &mut m.windows {
+                    cadence::restart(w, &m.geom.radius);
+                }
+                m
             })
             .collect();
         let n_dp = dp.len();
@@ -236,6 +240,7 @@ impl<'a> Engine<'a> {
             all_moved: true,
             air_col: vec![0.0; bm.dims[0] * bm.dims[1]],
             block_mass: vec![0.0; bm.len()],
+            cadence,
         })
     }
 
@@ -332,7 +337,22 @@ impl<'a> Engine<'a> {
         }
         let row = scene.schedule.period(p);
         let scheduled: Vec<usize> = (0..row.len()).filter(|&d| row[d] > 0.0).collect();
-        self.refresh_mobilised(&scheduled);
+        // With the multi-rate cadence, most markers step rarely, and the sums they feed
+        // change as slowly: an IMZ's sums are refreshed once per longest window it draws
+        // in (`engine::cadence`); without it, every period.
+        let window = 1u64 << self.cadence.max_level;
+        let stale: Vec<usize> = scheduled
+            .iter()
+            .copied()
+            .filter(|&d| {
+                let m = &self.imzs[d];
+                window == 1 || m.refreshed_at == 0 || m.drew_at >= m.refreshed_at + window
+            })
+            .collect();
+        self.refresh_mobilised(&stale);
+        for &d in &stale {
+            self.imzs[d].refreshed_at = self.steps_done.max(1);
+        }
         let inc = self.resolution.draw_increment;
         let max_t = row.iter().cloned().fold(0.0, f64::max);
         let steps = ((max_t / inc).ceil() as usize).max(1);
@@ -381,6 +401,8 @@ impl<'a> Engine<'a> {
         let params = self.params;
         let mut is_drawing = vec![false; self.imzs.len()];
         drawing.iter().for_each(|&d| is_drawing[d] = true);
+        let u = self.steps_done + 1;
+        let cadence = self.cadence;
         self.imzs
             .par_iter_mut()
             .filter(|m| is_drawing[m.id])
@@ -388,57 +410,135 @@ impl<'a> Engine<'a> {
                 imz.begin_interval();
                 imz.draw(row[imz.id] / steps as f64, &ground, &params);
                 imz.finish_interval(&ground, &params);
+                imz.drew_at = u;
+                if cadence.max_level > 0 {
+                    cadence::accumulate(&mut imz.windows, imz.motion.iter().map(|m| m.dv));
+                }
             });
         self.engulf(period, drawing);
         let mut cells = Vec::new();
         self.bins.add_new(&self.markers, &mut cells);
         let geoms: Vec<ImzGeom> = self.imzs.iter().map(|m| m.geom.clone()).collect();
-        let grid = ImzGrid::build(&geoms, drawing, self.extent.0, self.extent.1, cell);
-        // The active set: only markers binned where a drawing IMZ reaches can move.
-        let mut cells = self.rows_near(&geoms, drawing, cells);
-        let rows = std::mem::take(&mut self.rows);
+        // The levels whose windows end now, and the IMZs that drew in each window.
+        let due = cadence.due(u);
+        let active = self.active_per_level(u, due, drawing, true);
+        // The active set: only markers binned where a drawing IMZ reaches can move, and of
+        // those only the ones whose level is due.
+        let mut cells = self.rows_near(&geoms, &active[due as usize], cells);
+        let mut rows = std::mem::take(&mut self.rows);
+        let grids = self.level_grids(&geoms, &active);
+        if cadence.max_level > 0 {
+            // A marker steps when its level is due and an IMZ that drew in its window
+            // reaches its cell (elsewhere its step would be zero).
+            let mk = &self.markers;
+            rows.retain(|&k| mk.level[k as usize] <= due && reached(mk, k, &grids));
+        }
         self.marker_steps += rows.len() as u64;
-        let empty: &[DiskMotion] = &[];
-        let motion: Vec<&[DiskMotion]> = self
-            .imzs
-            .iter()
-            .map(|m| {
-                if is_drawing[m.id] {
-                    &m.motion[..]
-                } else {
-                    empty
-                }
-            })
-            .collect();
-        let field = MotionField {
-            geoms: &geoms,
-            motion: &motion,
-            grid: &grid,
-            ground: Some((&self.scene.blocks, period)),
-        };
-        self.steps_done += 1;
+        let owned = self.window_motions(&active);
+        let motion = level_motions(&self.imzs, &is_drawing, &owned);
+        let fields = level_fields(&geoms, &motion, &grids, (&self.scene.blocks, period));
+        self.steps_done = u;
         let perc = fines::Percolation {
             blocks: bm,
-            field: &field,
+            field: &fields[0],
             period,
             seed: self.scenario.seed,
-            step: self.steps_done,
+            step: u,
         };
         let hook = |mk: &Markers, k: usize, st: &mut markers::Step| perc.apply(mk, k, st);
         let extra: Option<&(dyn Fn(&Markers, usize, &mut markers::Step) + Sync)> =
             self.scenario.mechanisms.fines.then_some(&hook);
-        let mut drawn = if rows.len() == self.markers.len() {
+        let drawn = if cadence.max_level == 0 && rows.len() == self.markers.len() {
             // Every marker is active: the contiguous pass (the same steps, no row windows).
-            markers::move_markers(&mut self.markers, &field, extra)
+            markers::move_markers(&mut self.markers, &fields[0], extra)
         } else {
-            markers::move_rows(&mut self.markers, &field, extra, &rows)
+            let c = (cadence.max_level > 0).then_some((&cadence, u));
+            markers::move_rows(&mut self.markers, &fields, extra, &rows, c)
         };
-        if self.scenario.mechanisms.fragmentation {
-            fragmentation::attrite(&mut self.markers, bm, &self.scenario.fragmentation);
+        drop(fields);
+        self.restart_windows(&active);
+        self.after_move(period, rows, &mut cells, drawn);
+    }
+
+    /// Per cadence level 0..=`top`, the IMZs that drew in its window at update `u` (level
+    /// 0: `drawing`): the window ending at `u` when `ending`, else the one still open.
+    fn active_per_level(
+        &self,
+        u: u64,
+        top: u8,
+        drawing: &[usize],
+        ending: bool,
+    ) -> Vec<Vec<usize>> {
+        (0..=top as u32)
+            .map(|l| {
+                if l == 0 {
+                    return drawing.to_vec();
+                }
+                let start = if ending {
+                    u.saturating_sub(1 << l)
+                } else {
+                    u - u % (1u64 << l)
+                };
+                (0..self.imzs.len())
+                    .filter(|&d| self.imzs[d].drew_at > start)
+                    .collect()
+            })
+            .collect()
+    }
+
+    /// The grid over the IMZs active at each cadence level.
+    fn level_grids(&self, geoms: &[ImzGeom], active: &[Vec<usize>]) -> Vec<ImzGrid> {
+        let cell = self.grid_cell();
+        active
+            .iter()
+            .map(|a| ImzGrid::build(geoms, a, self.extent.0, self.extent.1, cell))
+            .collect()
+    }
+
+    /// The window motion (`Imz::window_motion`) of every IMZ active at each level ≥ 1
+    /// (empty for the others and for level 0).
+    fn window_motions(&self, active: &[Vec<usize>]) -> Vec<Vec<Vec<DiskMotion>>> {
+        active
+            .iter()
+            .enumerate()
+            .map(|(l, a)| {
+                let mut v = vec![Vec::new(); self.imzs.len()];
+                if l > 0 {
+                    a.iter().for_each(|&d| v[d] = self.imzs[d].window_motion(l));
+                }
+                v
+            })
+            .collect()
+    }
+
+    /// Starts new windows for the levels ≥ 1 in `active` (their windows end now), in the
+    /// IMZs that drew in them (the others' windows hold no void and their radii did not
+    /// change).
+    fn restart_windows(&mut self, active: &[Vec<usize>]) {
+        for (l, a) in active.iter().enumerate().skip(1) {
+            for &d in a {
+                let imz = &mut self.imzs[d];
+                cadence::restart(&mut imz.windows[l - 1], &imz.geom.radius);
+            }
         }
-        self.bins.update(&self.markers, &rows, &mut cells);
+    }
+
+    /// After a marker pass over `rows`: attrition, the bins, the air-gap cells, and the
+    /// drawn markers credited and moved out.
+    fn after_move(
+        &mut self,
+        period: i64,
+        rows: Vec<u32>,
+        cells: &mut Vec<usize>,
+        mut drawn: Vec<(usize, u32)>,
+    ) {
+        if self.scenario.mechanisms.fragmentation {
+            let bm = &self.scene.blocks;
+            fragmentation::attrite(&mut self.markers, bm, &self.scenario.fragmentation, &rows);
+        }
+        self.bins.update(&self.markers, &rows, cells);
         self.rows = rows;
-        self.mark_moved(&cells);
+        self.mark_moved(cells);
         drawn.sort_unstable_by(|a, b| b.0.cmp(&a.0));
         for (k, d) in drawn {
             self.credit(k, d as usize);
@@ -449,8 +549,55 @@ impl<'a> Engine<'a> {
         }
     }
 
+    /// Brings every marker up to date (`engine::cadence`): a marker whose level's window is
+    /// still open steps by the motion of that window so far, and takes a level whose
+    /// window starts now. Called before whatever reads positions exactly.
+    fn catch_up(&mut self, period: i64) {
+        let u = self.steps_done;
+        let cadence = self.cadence;
+        if cadence.max_level == 0 || u == 0 {
+            return;
+        }
+        let aligned = cadence.due(u);
+        let top = cadence.max_level;
+        let active = self.active_per_level(u, top, &[], false);
+        // Markers no IMZ of an open window reaches have nothing to catch up.
+        let mut near: Vec<usize> = active.concat();
+        near.sort_unstable();
+        near.dedup();
+        let geoms: Vec<ImzGeom> = self.imzs.iter().map(|m| m.geom.clone()).collect();
+        self.rows_near(&geoms, &near, Vec::new());
+        let grids = self.level_grids(&geoms, &active);
+        let mk = &self.markers;
+        let lagging: Vec<u32> = self
+            .rows
+            .iter()
+            .copied()
+            .filter(|&k| mk.level[k as usize] > aligned && reached(mk, k, &grids))
+            .collect();
+        if lagging.is_empty() {
+            return;
+        }
+        let owned = self.window_motions(&active);
+        let none = vec![false; self.imzs.len()];
+        let motion = level_motions(&self.imzs, &none, &owned);
+        let fields = level_fields(&geoms, &motion, &grids, (&self.scene.blocks, period));
+        self.marker_steps += lagging.len() as u64;
+        let drawn = markers::move_rows(
+            &mut self.markers,
+            &fields,
+            None,
+            &lagging,
+            Some((&cadence, u)),
+        );
+        drop(fields);
+        let mut cells = Vec::new();
+        self.after_move(period, lagging, &mut cells, drawn);
+    }
+
     /// One rilling step on the free surface (`rilling::rill`).
     fn rill(&mut self, period: i64) {
+        self.catch_up(period);
         let (bm, seed, sized) = (&self.scene.blocks, self.scenario.seed, self.sized());
         let size = move |b: usize, id: u64| fragmentation::initial_size(bm, b, seed, id, sized);
         let mut st = rilling::RillState {
@@ -779,6 +926,14 @@ impl<'a> Engine<'a> {
     /// Writes the period's extraction rows and snapshots, and applies the correction.
     fn close_period(&mut self, p: usize, period: i64) {
         let scene = self.scene;
+        let last = p + 1 == scene.periods.len();
+        let surface = &self.scenario.outputs.surface_periods;
+        let snapshot = &self.scenario.outputs.marker_periods;
+        if last || surface.contains(&period) || snapshot.contains(&period) {
+            // Positions are read exactly: every marker up to date (`engine::cadence`),
+            // before the period's tallies are written.
+            self.catch_up(period);
+        }
         let row = scene.schedule.period(p);
         let ex = &mut self.out.extraction;
         for d in 0..row.len() {
@@ -849,7 +1004,6 @@ impl<'a> Engine<'a> {
                 ex.lithology[l].push(per(*v));
             }
         }
-        let last = p + 1 == scene.periods.len();
         if self.scenario.outputs.imz_every_period || last {
             let imz = &mut self.out.imz;
             for m in &self.imzs {
@@ -989,6 +1143,52 @@ impl<'a> Engine<'a> {
 
 /// Cell of the plan grids over the IMZs and the marker bins: the smaller block side, or the
 /// marker spacing when coarser.
+/// Per cadence level, every IMZ's motion slice: level 0 this update's (for the IMZs in
+/// `drawing`), level L ≥ 1 `owned[L]`.
+fn level_motions<'m>(
+    imzs: &'m [Imz],
+    drawing: &[bool],
+    owned: &'m [Vec<Vec<DiskMotion>>],
+) -> Vec<Vec<&'m [DiskMotion]>> {
+    owned
+        .iter()
+        .enumerate()
+        .map(|(l, o)| {
+            imzs.iter()
+                .map(|m| match (l, drawing[m.id]) {
+                    (0, true) => &m.motion[..],
+                    (0, false) => &[][..],
+                    _ => &o[m.id][..],
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// The marker-pass field of each cadence level.
+fn level_fields<'f>(
+    geoms: &'f [ImzGeom],
+    motion: &'f [Vec<&'f [DiskMotion]>],
+    grids: &'f [ImzGrid],
+    ground: (&'f crate::model::BlockModel, i64),
+) -> Vec<MotionField<'f>> {
+    (0..grids.len())
+        .map(|l| MotionField {
+            geoms,
+            motion: &motion[l],
+            grid: &grids[l],
+            ground: Some(ground),
+        })
+        .collect()
+}
+
+/// Whether an IMZ active at marker row `k`'s level reaches its cell (elsewhere its step
+/// would be zero).
+fn reached(mk: &Markers, k: u32, grids: &[ImzGrid]) -> bool {
+    let k = k as usize;
+    !grids[mk.level[k] as usize].at(mk.x[k], mk.y[k]).is_empty()
+}
+
 fn grid_cell(bm: &crate::model::BlockModel, spacing: f64) -> f64 {
     bm.size[0].min(bm.size[1]).max(spacing)
 }

@@ -69,6 +69,10 @@ pub const DRAWPOINT_SPACING_FRACTION: f64 = 0.25;
 /// Smallest marker spacing as a multiple of the mean fragment size d̄.
 pub const FRAG_FRACTION: f64 = 1.0;
 
+/// Default `resolution.max_marker_move` as a fraction of the marker spacing: a marker that
+/// is slow enough to move less than this per update steps less often (`engine::cadence`).
+pub const MAX_MOVE_FRACTION: f64 = 0.5;
+
 /// The scene default (the rule in the module documentation, first part).
 fn scene_default(scene: &Scene) -> (f64, f64, f64, f64) {
     let bm = &scene.blocks;
@@ -183,6 +187,12 @@ pub fn resolve(scene: &Scene, sc: &Scenario) -> ResolvedResolution {
         layer_thickness: h,
         marker_spacing: s,
         draw_increment: inc,
+        // Fines percolation is evaluated per update: every marker then steps every update.
+        max_marker_move: if sc.mechanisms.fines {
+            0.0
+        } else {
+            set.max_marker_move.unwrap_or(MAX_MOVE_FRACTION * s)
+        },
     }
 }
 

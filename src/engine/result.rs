@@ -196,6 +196,10 @@ pub struct ResolvedResolution {
     pub marker_spacing: f64,
     /// Draw increment, t per drawpoint per step.
     pub draw_increment: f64,
+    /// The most a marker moves in one of its own steps, m (0: every marker steps every
+    /// update; `engine::cadence`).
+    #[serde(default)]
+    pub max_marker_move: f64,
 }
 
 /// Air gap per block column and period (rows only where there is air).

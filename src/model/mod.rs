@@ -26,3 +26,19 @@ pub struct Scene {
     /// Tonnes per period per drawpoint.
     pub schedule: Schedule,
 }
+
+impl Scene {
+    /// Keeps only the first `n` periods (a shorter scene: a quicker sweep, calibration or
+    /// trial run).
+    pub fn keep_periods(&mut self, n: usize) {
+        let n = n.min(self.periods.len());
+        self.periods.id.truncate(n);
+        self.periods.name.truncate(n);
+        self.periods.days.truncate(n);
+        if let Some(s) = self.periods.start.as_mut() {
+            s.truncate(n);
+        }
+        let nd = self.schedule.n_drawpoints;
+        self.schedule.tonnes.truncate(n * nd);
+    }
+}

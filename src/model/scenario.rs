@@ -65,6 +65,10 @@ pub struct Resolution {
     /// Draw increment: tonnes per drawpoint between marker updates. Default: the tonnes
     /// of one opening disk, π (w/2)² h ρ_s (1 − n1) (see `engine::resolution`).
     pub draw_increment: Option<f64>,
+    /// The most a marker may move in one of its own steps, m: a marker slower than this per
+    /// update steps once every 2^L updates by their summed motion (`engine::cadence`).
+    /// Default: 0.5 × marker spacing; 0 makes every marker step every update.
+    pub max_marker_move: Option<f64>,
     /// Accuracy target: the grade RMSE (relative, 0.01 = 1%) against a converged run that the
     /// resolution should reach. When set, the knobs left unset are chosen for it
     /// (`engine::resolution::resolve`): a tighter target gives a finer resolution, never a
@@ -633,6 +637,13 @@ impl Scenario {
         )?;
         pos("resolution.marker_spacing", self.resolution.marker_spacing)?;
         pos("resolution.draw_increment", self.resolution.draw_increment)?;
+        if let Some(x) = self.resolution.max_marker_move {
+            if !(x.is_finite() && x >= 0.0) {
+                return Err(format!(
+                    "resolution.max_marker_move must be a number ≥ 0 (0: every marker steps every update), got {x}"
+                ));
+            }
+        }
         pos(
             "resolution.target_grade_rmse",
             self.resolution.target_grade_rmse,

@@ -93,7 +93,8 @@ fn small_scenario() -> Scenario {
 ///   with fines on in both (the size sampling they share is keyed per marker, not drawn
 ///   from a shared stream, so it does not depend on which mechanism asked for it);
 /// - fines on with k1 = 0 (no percolation) is bit-identical to fines off, with
-///   fragmentation on in both.
+///   fragmentation on in both (and every marker stepping every update in both, as fines
+///   require).
 #[test]
 fn turning_a_mechanism_off_gives_the_run_without_it() {
     let scene = small_scene();
@@ -126,8 +127,12 @@ fn turning_a_mechanism_off_gives_the_run_without_it() {
     let both_k0 = run(&scene, &no_attrition);
     assert_identical(&fines_only, &both_k0, "fragmentation off vs K_N = 0");
     assert_same_additions(&fines_only, &both_k0, "fragmentation off vs K_N = 0");
-    // Fines switched off vs on without effect (fragmentation on in both).
-    let frag_only = run(&scene, &with(true, false));
+    // Fines switched off vs on without effect (fragmentation on in both). Fines
+    // percolation steps every marker every update (`engine::cadence`), so the run without
+    // it is compared at that cadence too.
+    let mut frag_every_update = with(true, false);
+    frag_every_update.resolution.max_marker_move = Some(0.0);
+    let frag_only = run(&scene, &frag_every_update);
     let mut scene_k0 = scene.clone();
     scene_k0.blocks.perc_k1.iter_mut().for_each(|k| *k = 0.0);
     let both_k1_0 = run(&scene_k0, &with(true, true));

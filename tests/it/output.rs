@@ -310,6 +310,7 @@ fn fake_run(scene: &Scene) -> RunOutput {
             layer_thickness: 3.8,
             marker_spacing: 1.9,
             draw_increment: 250.0,
+            max_marker_move: 0.95,
         },
         stress: Vec::new(),
     }

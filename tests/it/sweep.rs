@@ -83,11 +83,10 @@ fn sweep_writes_table_and_chart_and_errors_shrink_toward_the_reference() {
 /// targets give resolutions no coarser in any knob.
 #[test]
 fn automatic_resolution_meets_its_target_on_the_demo() {
-    use caveflow::analysis::sweep::keep_periods;
     use caveflow::engine::resolution::resolve;
     use caveflow::model::demo::{self, DemoScale};
     let mut scene = demo::henderson(DemoScale::Small, 42);
-    keep_periods(&mut scene, 3);
+    scene.keep_periods(3);
     let base = demo::scenario(DemoScale::Small, 42);
     let at = |t: f64| {
         let mut sc = base.clone();
