@@ -25,7 +25,7 @@
 //! Between its steps a marker of level L lags its true position by at most one window's
 //! move (≤ `max_marker_move`). Whatever reads marker positions exactly (rilling, marker
 //! snapshots, the free surface, the end of the run) first brings every marker up to date:
-//! [`catch_up_level`] (each steps by its level's partial window). The air gap and the
+//! `Engine::catch_up` (each steps by its level's partial window). The air gap and the
 //! mobilised disk properties (per period) read the lagged positions; they are block- and
 //! disk-scale sums, coarser than the lag. Fines percolation is evaluated per update
 //! (`engine::fines`), so with fines on every marker steps every update.

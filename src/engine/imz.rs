@@ -60,6 +60,20 @@ use crate::model::BlockModel;
 /// Number of perimeter points sampled for stagnant properties (summary §3.3).
 pub const PERIMETER_POINTS: usize = 24;
 
+/// Rings of points sampled for a disk's flowable area share.
+const AREA_RINGS: usize = 4;
+
+/// (cos t, sin t) at t = 2π x / [`PERIMETER_POINTS`] for x = 0, ½, 1, … : the sampling
+/// angles of the perimeter (whole x) and of the area rings (x = k + ½ ring), computed once.
+static UNIT_CIRCLE: std::sync::LazyLock<Vec<(f64, f64)>> = std::sync::LazyLock::new(|| {
+    (0..2 * PERIMETER_POINTS + AREA_RINGS)
+        .map(|j| {
+            let t = 2.0 * PI * (0.5 * j as f64) / PERIMETER_POINTS as f64;
+            (t.cos(), t.sin())
+        })
+        .collect()
+});
+
 /// The r-law: share of the void in disk i filled by dilation of the stagnant perimeter.
 ///
 /// `d` = d̄ (m), `h` disk thickness (m), `r_i` = R_i, `r_below` = R_{i−1}, `phi` in degrees,
@@ -316,16 +330,15 @@ impl Ground<'_> {
     /// Flowable share A_f of the area of a disk of radius `radius` at level `z`: the share
     /// of flowable points on four equal-area rings (radii R √((k + ½)/4)) of 24 points.
     pub fn area_fraction(&self, x: f64, y: f64, z: f64, radius: f64) -> f64 {
-        const RINGS: usize = 4;
         let mut n = 0usize;
-        for ring in 0..RINGS {
-            let a = radius * ((ring as f64 + 0.5) / RINGS as f64).sqrt();
+        for ring in 0..AREA_RINGS {
+            let a = radius * ((ring as f64 + 0.5) / AREA_RINGS as f64).sqrt();
             for k in 0..PERIMETER_POINTS {
-                let t = 2.0 * PI * (k as f64 + 0.5 * ring as f64) / PERIMETER_POINTS as f64;
-                n += usize::from(self.flowable([x + a * t.cos(), y + a * t.sin(), z]));
+                let (c, si) = UNIT_CIRCLE[2 * k + ring];
+                n += usize::from(self.flowable([x + a * c, y + a * si, z]));
             }
         }
-        n as f64 / (RINGS * PERIMETER_POINTS) as f64
+        n as f64 / (AREA_RINGS * PERIMETER_POINTS) as f64
     }
 
     /// Stagnant properties of a disk of IMZ `me` at radius `radius` and mid-height `z`:
@@ -337,8 +350,8 @@ impl Ground<'_> {
         };
         let mut n = 0usize;
         for k in 0..PERIMETER_POINTS {
-            let t = 2.0 * PI * k as f64 / PERIMETER_POINTS as f64;
-            let p = [x + radius * t.cos(), y + radius * t.sin(), z];
+            let (c, si) = UNIT_CIRCLE[2 * k];
+            let p = [x + radius * c, y + radius * si, z];
             if let Some((n0, n1, d, phi, rho1)) = self.point(p, me) {
                 s.n0 += n0;
                 s.n1 += n1;

@@ -3,6 +3,7 @@
 //! - [`imz`]: IMZ growth by the r-law (summary §3.3).
 //! - [`markers`]: the marker lattice and marker motion (summary §3.3), superposition of
 //!   overlapping IMZs (summary §4.2).
+//! - [`cadence`]: multi-rate marker updates: a slow marker steps once every 2^L updates.
 //! - [`resolution`]: the automatic choice of h, marker spacing and draw increment.
 //! - [`fragmentation`]: primary fragment sizes and secondary fragmentation (summary §6.3).
 //! - [`fines`]: fines migration by percolation (summary §7.3).
@@ -16,9 +17,9 @@
 //! 1. snapshot every IMZ's geometry (so parallel updates read a fixed state);
 //! 2. grow the drawing IMZs in parallel (each passes its void up in cycles);
 //! 3. engulf the lattice sites the grown disks now cover (stagnant → moving markers);
-//! 4. one parallel pass over the moving markers, summing the motion of every drawing IMZ
-//!    that contains each (superposition), plus fines percolation when it is on; markers
-//!    leaving the lowest disk are drawn. With secondary fragmentation on, the markers'
+//! 4. one parallel pass over the moving markers whose cadence level is due, summing the
+//!    motion of every IMZ that drew in their window and contains each (superposition),
+//!    plus fines percolation when it is on; markers leaving the lowest disk are drawn. With secondary fragmentation on, the markers'
 //!    attrited fractions and sizes are then updated from their accumulated strain and work.
 //!
 //! # Mass balance
