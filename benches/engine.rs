@@ -7,7 +7,10 @@
 //!   (`markers::move_rows` over the active rows, here every row). The throughput is reported in markers (criterion's "elements"), so
 //!   marker-updates per second read straight off the report;
 //! - `demo_small_6_periods`: the first 6 monthly periods of the small demo panel, end to end
-//!   (32 drawpoints, 0.4 Mt drawn).
+//!   (32 drawpoints, 0.4 Mt drawn);
+//! - `mine_200_days`: the first 200 daily periods of the mine-scale scene (416 drawpoints),
+//!   with the multi-rate cadence (the default) and with every marker stepping every update
+//!   (`max_marker_move = 0`), so the cadence's gain reads as a ratio.
 
 use caveflow::engine::markers::move_rows;
 use caveflow::engine::Engine;
@@ -84,5 +87,20 @@ fn demo_run(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, isolated_draw, marker_pass, demo_run);
+fn mine_run(c: &mut Criterion) {
+    let mut scene = demo::henderson(DemoScale::Mine, 42);
+    scene.keep_periods(200);
+    let mut g = c.benchmark_group("mine_200_days");
+    g.sample_size(10);
+    for (name, max_move) in [("cadence", None), ("every_update", Some(0.0))] {
+        let mut sc = demo::scenario(DemoScale::Mine, 42);
+        sc.resolution.max_marker_move = max_move;
+        g.bench_function(name, |bench| {
+            bench.iter(|| Engine::new(&scene, &sc).unwrap().run(&mut |_, _| {}))
+        });
+    }
+    g.finish();
+}
+
+criterion_group!(benches, isolated_draw, marker_pass, demo_run, mine_run);
 criterion_main!(benches);
