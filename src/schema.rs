@@ -528,6 +528,7 @@ pub const SWEEP: TableSpec = TableSpec {
         f("layer_thickness", F64, "m", "Disk thickness h run", true, &[]),
         f("marker_spacing", F64, "m", "Marker spacing run", true, &[]),
         f("draw_increment", F64, "t", "Draw increment run", true, &[]),
+        f("max_marker_move", F64, "m", "Largest move of a marker in one of its own steps (engine::cadence); 0: every marker every update, as in the reference", true, &[]),
         f("wall_s", F64, "s", "Wall time of the run (median over the repeats)", true, &[]),
         f("markers", I64, "-", "Markers mobilised", true, &[]),
         f("grade_rmse", F64, "-", "RMSE of the first grade over drawpoint-periods against the reference, divided by the reference's mean grade (0.01 = 1%)", true, &[]),

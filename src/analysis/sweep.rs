@@ -371,6 +371,7 @@ pub fn write_sweep(path: &Path, rows: &[SweepRow]) -> Result<(), OutputError> {
         ("layer_thickness", col(&|r| r.resolution.layer_thickness)),
         ("marker_spacing", col(&|r| r.resolution.marker_spacing)),
         ("draw_increment", col(&|r| r.resolution.draw_increment)),
+        ("max_marker_move", col(&|r| r.resolution.max_marker_move)),
         ("wall_s", col(&|r| r.wall_s)),
         (
             "markers",
