@@ -316,6 +316,10 @@ fn run(a: RunArgs) -> Result<ExitCode> {
         eprintln!("warning: {w}");
     }
     if let Some(n) = a.keep_periods {
+        if n == 0 {
+            eprintln!("error: --keep-periods must be at least 1");
+            return Ok(ExitCode::from(1));
+        }
         loaded.scene.keep_periods(n);
     }
     let scene = &loaded.scene;

@@ -54,7 +54,6 @@
 use std::f64::consts::PI;
 
 use super::cadence::Window;
-
 use crate::model::BlockModel;
 
 /// Number of perimeter points sampled for stagnant properties (summary §3.3).

@@ -31,7 +31,6 @@
 use rayon::prelude::*;
 
 use super::cadence::Cadence;
-
 use super::imz::{DiskMotion, ImzGeom, ImzGrid};
 use crate::model::BlockModel;
 

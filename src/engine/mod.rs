@@ -19,8 +19,9 @@
 //! 3. engulf the lattice sites the grown disks now cover (stagnant → moving markers);
 //! 4. one parallel pass over the moving markers whose cadence level is due, summing the
 //!    motion of every IMZ that drew in their window and contains each (superposition),
-//!    plus fines percolation when it is on; markers leaving the lowest disk are drawn. With secondary fragmentation on, the markers'
-//!    attrited fractions and sizes are then updated from their accumulated strain and work.
+//!    plus fines percolation when it is on; markers leaving the lowest disk are drawn.
+//!    With secondary fragmentation on, the attrited fractions and sizes of the markers
+//!    that moved are then updated from their accumulated strain and work.
 //!
 //! # Mass balance
 //! Drawn markers are discrete, so the marker mass drawn in a period differs from the
@@ -1142,8 +1143,6 @@ impl<'a> Engine<'a> {
     }
 }
 
-/// Cell of the plan grids over the IMZs and the marker bins: the smaller block side, or the
-/// marker spacing when coarser.
 /// Per cadence level, every IMZ's motion slice: level 0 this update's (for the IMZs in
 /// `drawing`), level L ≥ 1 `owned[L]`.
 fn level_motions<'m>(
@@ -1190,6 +1189,8 @@ fn reached(mk: &Markers, k: u32, grids: &[ImzGrid]) -> bool {
     !grids[mk.level[k] as usize].at(mk.x[k], mk.y[k]).is_empty()
 }
 
+/// Cell of the plan grids over the IMZs and the marker bins: the smaller block side, or the
+/// marker spacing when coarser.
 fn grid_cell(bm: &crate::model::BlockModel, spacing: f64) -> f64 {
     bm.size[0].min(bm.size[1]).max(spacing)
 }

@@ -147,6 +147,51 @@ fn run_with_tables_and_set() {
     assert!(String::from_utf8_lossy(&bad.stderr).contains("flow.q must be a positive number"));
 }
 
+/// `run --keep-periods N` draws only the first N periods; 0 periods and a negative
+/// `resolution.max_marker_move` are invalid input (exit 1) with a message naming them.
+#[test]
+fn run_keep_periods_and_cadence_setting() {
+    let scenario = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/scenario.toml");
+    let tmp = tempfile::tempdir().unwrap();
+    let run = |extra: &[&str]| {
+        caveflow()
+            .arg("run")
+            .arg(&scenario)
+            .arg("--out")
+            .arg(tmp.path().join("out"))
+            .args(["--set", "resolution.layer_thickness=7.6"])
+            .args(["--set", "outputs.charts=false", "--checkpoint-every", "0"])
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    let out = run(&["--keep-periods", "2"]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    // The demo schedule's first two months, summed from the CSV.
+    let sched = std::fs::read_to_string(scenario.with_file_name("schedule.csv")).unwrap();
+    let first_two: f64 = sched
+        .lines()
+        .filter(|l| l.starts_with("1,") || l.starts_with("2,"))
+        .map(|l| l.rsplit(',').next().unwrap().parse::<f64>().unwrap())
+        .sum();
+    assert!(
+        stdout.contains(&format!("t of {first_two:.0} t scheduled")),
+        "{stdout} (expected {first_two:.0} t scheduled)"
+    );
+    let zero = run(&["--keep-periods", "0"]);
+    assert_eq!(zero.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&zero.stderr).contains("--keep-periods must be at least 1"));
+    let bad = run(&["--set", "resolution.max_marker_move=-1"]);
+    assert_eq!(bad.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&bad.stderr)
+        .contains("resolution.max_marker_move must be a number ≥ 0"));
+}
+
 /// A run killed at any moment resumes with `--resume` and writes the same outputs, byte
 /// for byte, as an uninterrupted run (the manifest aside: it records wall time).
 #[test]
