@@ -89,6 +89,45 @@ impl Lattice {
         (t1 >= t0).then_some((t0 as usize, t1 as usize))
     }
 
+    /// The smallest squared plan distance a² > r² from the axis (x, y) of a site in the
+    /// layers whose centres lie in [z0, z1) (∞ if none): while a disk there stays within
+    /// this, it covers no new site, so engulfing can skip it. a² is computed as engulfing
+    /// computes it. Per row, the nearest sites outside the chord are those just beyond the
+    /// chord's ends (or nearest the axis when the row misses the circle); beyond the rows
+    /// the circle spans, the nearest row on each side dominates every farther one.
+    pub fn next_site_a2(&self, x: f64, y: f64, z0: f64, z1: f64, r: f64) -> f64 {
+        let Some(kr) = self.range(2, z0, z1) else {
+            return f64::INFINITY;
+        };
+        let last = |a: usize| self.n[a] as isize - 1;
+        let idx = |a: usize, c: f64| ((c - self.origin[a]) / self.s - 0.5).floor() as isize;
+        let (j0, j1) = ((idx(1, y - r) - 1).max(0), (idx(1, y + r) + 2).min(last(1)));
+        let mut best = f64::INFINITY;
+        // Row j is the same in every layer; only a² matters.
+        let k = kr.0;
+        for j in j0..=j1 {
+            let dy = self.origin[1] + (j as f64 + 0.5) * self.s - y;
+            let outer = (r * r - dy * dy).max(0.0).sqrt();
+            let (lo, hi) = match self.range(0, x - outer, x + outer + 1e-9 * self.s) {
+                Some((a, b)) => (a as isize - 1, b as isize + 1),
+                None => (idx(0, x) - 1, idx(0, x) + 2),
+            };
+            let mut try_site = |i: isize| {
+                if (0..=last(0)).contains(&i) {
+                    let p = self.pos(self.id(i as usize, j as usize, k));
+                    let a2 = (p[0] - x).powi(2) + (p[1] - y).powi(2);
+                    if a2 > r * r && a2 < best {
+                        best = a2;
+                    }
+                }
+            };
+            for i in [lo - 1, lo, lo + 1, hi - 1, hi, hi + 1] {
+                try_site(i);
+            }
+        }
+        best
+    }
+
     /// Site index from per-axis indices.
     #[inline]
     pub fn id(&self, i: usize, j: usize, k: usize) -> usize {
@@ -823,5 +862,55 @@ mod tests {
         assert_eq!(l.range(0, 2.6, 2.9), None);
         let id = l.id(3, 4, 5);
         assert_eq!(l.pos(id), [3.5, 4.5, 5.5]);
+    }
+
+    /// `next_site_a2` is the brute-force minimum over every site of the layer, for axes on
+    /// and off the lattice, radii from zero to past the edge, and sites exactly on a circle.
+    #[test]
+    fn next_site_is_the_nearest_site_beyond_the_radius() {
+        let l = Lattice {
+            origin: [-3.0, 2.0, 0.0],
+            s: 0.5,
+            n: [24, 20, 4],
+        };
+        let brute = |x: f64, y: f64, r: f64| {
+            let mut best = f64::INFINITY;
+            for j in 0..l.n[1] {
+                for i in 0..l.n[0] {
+                    let p = l.pos(l.id(i, j, 1));
+                    let a2 = (p[0] - x).powi(2) + (p[1] - y).powi(2);
+                    if a2 > r * r && a2 < best {
+                        best = a2;
+                    }
+                }
+            }
+            best
+        };
+        let mut checked = 0;
+        for &(x, y) in &[
+            (3.0, 7.0),
+            (2.75, 6.75),
+            (-2.9, 2.1),
+            (8.9, 11.9),
+            (3.1, 4.37),
+        ] {
+            for k in 0..60 {
+                let r = 0.137 * k as f64;
+                let got = l.next_site_a2(x, y, 0.5, 1.0, r);
+                assert_eq!(
+                    got.to_bits(),
+                    brute(x, y, r).to_bits(),
+                    "axis ({x}, {y}), r {r}"
+                );
+                checked += 1;
+            }
+            // Exactly on a circle of sites: the next one is strictly beyond.
+            let on = l.pos(l.id(5, 5, 1));
+            let r = ((on[0] - x).powi(2) + (on[1] - y).powi(2)).sqrt();
+            assert_eq!(l.next_site_a2(x, y, 0.5, 1.0, r), brute(x, y, r));
+        }
+        assert_eq!(checked, 300);
+        // No layer in the height range: nothing to reach.
+        assert_eq!(l.next_site_a2(3.0, 7.0, 10.0, 11.0, 1.0), f64::INFINITY);
     }
 }

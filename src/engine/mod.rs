@@ -809,17 +809,20 @@ impl<'a> Engine<'a> {
         let sized = self.sized();
         let seed = self.scenario.seed;
         let engulfed = &self.engulfed;
-        let mut sites: Vec<usize> = drawing
+        let scanned: Vec<(Vec<usize>, Vec<(usize, f64)>)> = drawing
             .par_iter()
             .map(|&d| {
                 let imz = &self.imzs[d];
                 let g = &imz.geom;
                 let mut found = Vec::new();
+                let mut next = Vec::new();
                 for (i, (&r, &r0)) in g.radius.iter().zip(&imz.r_engulfed).enumerate() {
-                    if r <= r0 {
+                    // Nothing new unless the disk grew past the nearest site beyond it.
+                    if r <= r0 || r * r < imz.next_site[i] {
                         continue;
                     }
                     let zb = g.z0 + i as f64 * g.h;
+                    next.push((i, lat.next_site_a2(g.x, g.y, zb, zb + g.h, r)));
                     let (Some(kr), Some(jr)) =
                         (lat.range(2, zb, zb + g.h), lat.range(1, g.y - r, g.y + r))
                     else {
@@ -856,13 +859,15 @@ impl<'a> Engine<'a> {
                         }
                     }
                 }
-                found
+                (found, next)
             })
-            .flatten()
             .collect();
-        for &d in drawing {
+        let mut sites = Vec::new();
+        for (&d, (found, next)) in drawing.iter().zip(scanned) {
             let imz = &mut self.imzs[d];
             imz.r_engulfed.clone_from(&imz.geom.radius);
+            next.into_iter().for_each(|(i, a2)| imz.next_site[i] = a2);
+            sites.extend(found);
         }
         sites.sort_unstable();
         sites.dedup();
