@@ -8,7 +8,7 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 use polars::prelude::{col, lit, IntoLazy};
 
-use super::{load, progress, scenario, InputArgs};
+use super::{keep_periods, load, progress, scenario, InputArgs};
 use crate::analysis::calibrate::{self, CalibrateConfig, Problem};
 use crate::analysis::reconcile::{self, records_frame, Frames, Settings};
 use crate::analysis::report::{write_report, ReportInfo};
@@ -191,8 +191,8 @@ pub(super) fn calibrate_cmd(a: CalibrateArgs) -> Result<ExitCode> {
             return Ok(ExitCode::from(1));
         }
     };
-    if let Some(n) = a.keep_periods {
-        loaded.scene.keep_periods(n);
+    if !keep_periods(&mut loaded.scene, a.keep_periods) {
+        return Ok(ExitCode::from(1));
     }
     let scene = &loaded.scene;
     let (_, grade) = grades(scene, &records.grade_names, &sc, a.grade.as_deref())?;

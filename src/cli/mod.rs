@@ -12,7 +12,7 @@ use crate::engine::{resolution, stability, Engine, EngineError};
 use crate::model::demo::{self, DemoScale};
 use crate::model::load::{load_scene, InputFile, LoadedScene};
 use crate::model::scenario::ScenarioError;
-use crate::model::Scenario;
+use crate::model::{Scenario, Scene};
 use crate::output::{self, Manifest};
 use crate::schema;
 
@@ -256,6 +256,22 @@ pub fn scenario(a: &InputArgs) -> Result<Scenario> {
     Ok(sc)
 }
 
+/// Applies `--keep-periods` (run, sweep, calibrate). Keeping 0 periods is invalid input:
+/// prints why and returns false.
+fn keep_periods(scene: &mut Scene, n: Option<usize>) -> bool {
+    match n {
+        Some(0) => {
+            eprintln!("error: --keep-periods must be at least 1");
+            false
+        }
+        Some(n) => {
+            scene.keep_periods(n);
+            true
+        }
+        None => true,
+    }
+}
+
 /// Loads and validates; on problems prints them all and returns None.
 fn load(sc: &Scenario) -> Option<LoadedScene> {
     match load_scene(sc) {
@@ -315,12 +331,8 @@ fn run(a: RunArgs) -> Result<ExitCode> {
     for w in &loaded.warnings {
         eprintln!("warning: {w}");
     }
-    if let Some(n) = a.keep_periods {
-        if n == 0 {
-            eprintln!("error: --keep-periods must be at least 1");
-            return Ok(ExitCode::from(1));
-        }
-        loaded.scene.keep_periods(n);
+    if !keep_periods(&mut loaded.scene, a.keep_periods) {
+        return Ok(ExitCode::from(1));
     }
     let scene = &loaded.scene;
     let dir = &sc.outputs.dir;
@@ -519,8 +531,8 @@ fn sweep_cmd(mut a: SweepArgs) -> Result<ExitCode> {
     let Some(mut loaded) = load(&sc) else {
         return Ok(ExitCode::from(1));
     };
-    if let Some(n) = a.keep_periods {
-        loaded.scene.keep_periods(n);
+    if !keep_periods(&mut loaded.scene, a.keep_periods) {
+        return Ok(ExitCode::from(1));
     }
     let cfg = SweepConfig {
         h: a.h,

@@ -65,7 +65,7 @@ impl Cadence {
     /// Highest level whose window ends at update `u` (≥ 1): the levels due then are 0 up to
     /// this one.
     pub fn due(&self, u: u64) -> u8 {
-        (u.trailing_zeros().min(u8::MAX as u32) as u8).min(self.max_level)
+        (u.trailing_zeros() as u8).min(self.max_level)
     }
 
     /// The level a marker of level `level` takes after moving `moved` (m) in a step that

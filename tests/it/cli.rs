@@ -186,6 +186,31 @@ fn run_keep_periods_and_cadence_setting() {
     let zero = run(&["--keep-periods", "0"]);
     assert_eq!(zero.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&zero.stderr).contains("--keep-periods must be at least 1"));
+    // The same rule for the other commands that take it.
+    for cmd in [
+        vec!["sweep", "--keep-periods", "0"],
+        vec![
+            "calibrate",
+            "--records",
+            "data/records.csv",
+            "--keep-periods",
+            "0",
+        ],
+    ] {
+        let out = caveflow()
+            .current_dir(env!("CARGO_MANIFEST_DIR"))
+            .arg(cmd[0])
+            .arg("data/scenario.toml")
+            .args(&cmd[1..])
+            .args(["--out", tmp.path().join("zero").to_str().unwrap()])
+            .output()
+            .unwrap();
+        assert_eq!(out.status.code(), Some(1), "{cmd:?}");
+        assert!(
+            String::from_utf8_lossy(&out.stderr).contains("--keep-periods must be at least 1"),
+            "{cmd:?}"
+        );
+    }
     let bad = run(&["--set", "resolution.max_marker_move=-1"]);
     assert_eq!(bad.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&bad.stderr)
