@@ -79,11 +79,26 @@ static UNIT_CIRCLE: std::sync::LazyLock<Vec<(f64, f64)>> = std::sync::LazyLock::
 /// `q` the exponent (3.5 by default).
 #[inline]
 pub fn r_law(d: f64, h: f64, r_i: f64, r_below: f64, phi: f64, q: f64) -> f64 {
+    r_law_sloped(d, h, r_i, r_below, base_slope(phi), q)
+}
+
+/// tan(45° + φ/2): the slope of the base angle, φ in degrees.
+#[inline]
+pub fn base_slope(phi: f64) -> f64 {
+    (45.0 + 0.5 * phi).to_radians().tan()
+}
+
+/// [`r_law`] with the base-angle slope tan(45° + φ/2) given.
+#[inline]
+fn r_law_sloped(d: f64, h: f64, r_i: f64, r_below: f64, slope: f64, q: f64) -> f64 {
     if r_i <= 0.0 {
         return 1.0;
     }
-    let slope = (45.0 + 0.5 * phi).to_radians().tan();
     let bracket = (1.0 - (r_i - r_below) * slope / h).max(0.0);
+    if bracket == 0.0 && q > 0.0 {
+        // At or past the base angle: 0^q (a disk at its limit passes all its void up).
+        return 0.0;
+    }
     (10.0 * d * h / (PI * r_i * r_i) * bracket.powf(q)).min(1.0)
 }
 
@@ -449,6 +464,9 @@ pub struct Imz {
     pub drew_at: u64,
     /// The marker update at which the mobilised sums were last refreshed (0: never).
     pub refreshed_at: u64,
+    /// Per disk, the friction angle φ last seen and its tan(45° + φ/2) (`Imz::slope`).
+    #[serde(skip)]
+    slopes: Vec<(f64, f64)>,
 }
 
 /// IMZ parameters from the scenario.
@@ -498,6 +516,7 @@ impl Imz {
             windows: Vec::new(),
             drew_at: 0,
             refreshed_at: 0,
+            slopes: Vec::new(),
         }
     }
 
@@ -616,18 +635,20 @@ impl Imz {
             };
             let st = self.stagnant[i];
             self.motion[i].dv += v;
+            let slope = self.slope(i, phi);
+            let r_at = self.geom.radius[i];
             let r = if st.flow_frac > 0.0 {
-                r_law(d, h, self.geom.radius[i], r_below, phi, p.q)
+                r_law_sloped(d, h, r_at, r_below, slope, p.q)
             } else {
                 0.0
             };
             if r > 0.0 {
-                let jump = self.usable_jump(i, r_below, phi, g, p);
+                let jump = self.usable_jump(i, r_below, slope, g, p);
                 let f = self.stagnant[i].flow_frac;
                 self.motion[i].jump = jump;
                 if f > 0.0 {
                     let cap = self.cap(i, g, p);
-                    v = self.absorb(i, v, r_below, d, phi, jump, f, cap, p);
+                    v = self.absorb(i, v, (r_at, r), r_below, d, slope, jump, f, cap, p);
                     // The remainder of a cycle that has all but vanished is absorbed here,
                     // so the cycle ends and the void is conserved.
                     if v <= 1e-12 * v0 {
@@ -657,21 +678,26 @@ impl Imz {
         &mut self,
         i: usize,
         v: f64,
+        r_now: (f64, f64),
         r_below: f64,
         d: f64,
-        phi: f64,
+        tan: f64,
         jump: f64,
         f: f64,
         cap: f64,
         p: &ImzParams,
     ) -> f64 {
         let h = self.geom.h;
-        let tan = (45.0 + 0.5 * phi).to_radians().tan();
         let k = PI * h * jump * f;
         let mut big_r = self.geom.radius[i];
         let (mut rem, mut passed) = (v, 0.0);
+        // r at R_i as the caller found it, unless free widening moved R_i since.
+        let mut r = if big_r == r_now.0 {
+            r_now.1
+        } else {
+            r_law_sloped(d, h, big_r, r_below, tan, p.q)
+        };
         while rem > 0.0 {
-            let r = r_law(d, h, big_r, r_below, phi, p.q);
             if r <= 0.0 {
                 passed += rem;
                 break;
@@ -689,14 +715,39 @@ impl Imz {
                 passed += rem;
                 break;
             }
+            if rem > 0.0 {
+                r = r_law_sloped(d, h, big_r, r_below, tan, p.q);
+            }
         }
         self.geom.radius[i] = big_r;
         passed
     }
 
+    /// tan(45° + φ/2) of disk i at friction angle `phi`, remembered per disk (φ changes
+    /// only when the disk's properties are refreshed).
+    fn slope(&mut self, i: usize, phi: f64) -> f64 {
+        if self.slopes.len() <= i {
+            self.slopes.resize(self.disks(), (f64::NAN, f64::NAN));
+        }
+        let (memo_phi, slope) = self.slopes[i];
+        if memo_phi == phi {
+            return slope;
+        }
+        let slope = base_slope(phi);
+        self.slopes[i] = (phi, slope);
+        slope
+    }
+
     /// The porosity jump disk i can use, widening the disk for free across ground that is
     /// already dilated (see the module docs).
-    fn usable_jump(&mut self, i: usize, r_below: f64, phi: f64, g: &Ground, p: &ImzParams) -> f64 {
+    fn usable_jump(
+        &mut self,
+        i: usize,
+        r_below: f64,
+        slope: f64,
+        g: &Ground,
+        p: &ImzParams,
+    ) -> f64 {
         let mut jump = self.stagnant[i].jump();
         if jump >= p.min_jump {
             return jump;
@@ -704,15 +755,21 @@ impl Imz {
         // Free widening keeps to the base angle: never more than h / tan(45 + φ/2) wider
         // than the disk below, where the r-law's bracket closes (so overlapping IMZs merge
         // through a funnel at 45 + φ/2, not a step).
-        let slope = (45.0 + 0.5 * phi).to_radians().tan();
         let cap = self.cap(i, g, p).min(r_below + self.geom.h / slope);
         if self.geom.radius[i] >= cap {
             return jump.max(p.min_jump);
         }
+        // The walk samples the perimeter once per `step` gained. A disk that creeps out
+        // with the disk below (its cap grows a little every cycle) is not resampled until it
+        // is a whole step past its last sample: the ground within one step is taken as
+        // sampled, the walk's own resolution.
         let step = (0.25 * p.resample).max(1e-3 * cap);
         let mut r = self.geom.radius[i];
         while r < cap {
             r = (r + step).min(cap);
+            if r - self.stagnant[i].sampled_at < step {
+                continue;
+            }
             let s = g.stagnant(self.id, self.geom.x, self.geom.y, self.z_mid(i), r);
             self.stagnant[i] = s;
             jump = s.jump();
