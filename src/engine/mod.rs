@@ -433,7 +433,11 @@ impl<'a> Engine<'a> {
             // A marker steps when its level is due and an IMZ that drew in its window
             // reaches its cell (elsewhere its step would be zero).
             let mk = &self.markers;
-            rows.retain(|&k| mk.level[k as usize] <= due && reached(mk, k, &grids));
+            rows = rows
+                .par_iter()
+                .copied()
+                .filter(|&k| mk.level[k as usize] <= due && reached(mk, k, &grids))
+                .collect();
         }
         self.marker_steps += rows.len() as u64;
         let owned = self.window_motions(&active);
@@ -573,7 +577,7 @@ impl<'a> Engine<'a> {
         let mk = &self.markers;
         let lagging: Vec<u32> = self
             .rows
-            .iter()
+            .par_iter()
             .copied()
             .filter(|&k| mk.level[k as usize] > aligned && reached(mk, k, &grids))
             .collect();

@@ -5,9 +5,18 @@
 //! Defaults follow MassFlow's ratios and are refined by the scene:
 //! - h = min(0.5 × smallest block dimension, smallest opening width): MassFlow's disks are
 //!   0.5 × block size; a disk thicker than the opening cannot resolve the base angle.
-//! - marker spacing = 0.5 h (MassFlow: markers 0.25 × block size with 0.5 × block disks).
+//! - marker spacing = 0.25 × smallest block dimension (MassFlow's markers), no wider than
+//!   [`DRAWPOINT_SPACING_FRACTION`] of the median distance between neighbouring drawpoints
+//!   (an IMZ must hold a few markers across) and never finer than 0.5 h. Markers sample the
+//!   block model's grades and the IMZs; the opening width, which can make h thinner than
+//!   MassFlow's 0.5 × block, sets neither. Where h is 0.5 × block (the demo: 7.6 m blocks,
+//!   h 3.8 m) this is MassFlow's pair, 0.5 h; a mine-scale model of 15.2 m blocks with 4 m
+//!   openings gets h 4 m and 3.4 m markers (drawpoint spacing 13.6 m), not 2 m ones with
+//!   6.7× the markers for a sampling error the sweep puts at half (README, "Mine scale").
 //! - draw increment = the tonnes of the smallest opening disk (π (w/2)² h) at dilated
-//!   density. The increment is the marker-update interval: the IMZ itself grows in cycles
+//!   density, times the spacing over 0.5 h when the spacing is coarser than that (as for
+//!   an accuracy target, below: a marker moves about as many spacings per update as with
+//!   MassFlow's pair). The increment is the marker-update interval: the IMZ itself grows in cycles
 //!   of at most a quarter of its lowest disk (`Imz::draw`), and markers then move by the
 //!   void passed "since the last marker update" (summary §3.3). The axial marker of a cone
 //!   profile moves up to 3 disks per update at this size; a third of it keeps it within
@@ -30,10 +39,10 @@
 //! to be sampled), and no finer than [`FRAG_FRACTION`] × d̄ (markers closer than fragments
 //! stand for no more material than one fragment). h stays the scene default (finer h costs
 //! time and the sweep found it changes the grade error by less than 0.005 points) but never
-//! thinner than d̄ (h/d̄ ≥ 1, `stability`). The increment follows the spacing: the same
-//! multiple m when coarser than the default (a marker then moves about as many spacings per
-//! update as at the default), the default when finer (a finer increment costs time and buys
-//! nothing measurable). The sweep supports it: at spacing × 2 the error is 0.269, 0.266 and
+//! thinner than d̄ (h/d̄ ≥ 1, `stability`). The increment follows the spacing: the opening
+//! disk's tonnes times the spacing over 0.5 h when coarser than 0.5 h (a marker then moves
+//! about as many spacings per update as at the demo's default), one disk when finer (a finer
+//! increment costs time and buys nothing measurable). The sweep supports it: at spacing × 2 the error is 0.269, 0.266 and
 //! 0.269% at increment × 1, 2 and 4; at the default spacing, increment × 2 adds 0.003 points
 //! and × 4 adds 0.019. Each step is monotone in T, so a tighter target never gives a
 //! coarser resolution.
@@ -95,6 +104,29 @@ fn scene_default(scene: &Scene) -> (f64, f64, f64, f64) {
     (h, min_block, min_open, rho1)
 }
 
+/// Default marker spacing as a fraction of the smallest block dimension: MassFlow's.
+pub const BLOCK_SPACING_FRACTION: f64 = 0.25;
+
+/// The scene's default marker spacing for disks of thickness `h` (the rule in the module
+/// documentation): 0.25 × the smallest block dimension, bounded by the drawpoint spacing,
+/// never finer than 0.5 h.
+fn default_spacing(scene: &Scene, h: f64, min_block: f64) -> f64 {
+    (BLOCK_SPACING_FRACTION * min_block)
+        .min(spacing_cap(scene, min_block))
+        .max(0.5 * h)
+}
+
+/// The coarsest marker spacing the scene allows: the smallest block dimension, and
+/// [`DRAWPOINT_SPACING_FRACTION`] of the drawpoint spacing.
+fn spacing_cap(scene: &Scene, min_block: f64) -> f64 {
+    let dp = drawpoint_spacing(scene);
+    if dp.is_finite() {
+        min_block.min(DRAWPOINT_SPACING_FRACTION * dp)
+    } else {
+        min_block
+    }
+}
+
 /// Spacing multiple for an accuracy target, before the scene's bounds (monotone in the
 /// target: a tighter target never gives a larger multiple).
 pub fn spacing_multiple(target: f64) -> f64 {
@@ -144,8 +176,11 @@ pub fn resolve(scene: &Scene, sc: &Scenario) -> ResolvedResolution {
     let (h0, min_block, min_open, rho1) = scene_default(scene);
     let set = &sc.resolution;
     // Spacing (if the target chooses it) and the increment as a multiple of one disk.
-    let (h, s, inc_mult) = match set.target_grade_rmse {
-        None => (h0, None, 1.0),
+    let (h, s) = match set.target_grade_rmse {
+        None => {
+            let h = set.layer_thickness.unwrap_or(h0);
+            (h, default_spacing(scene, h, min_block))
+        }
         Some(target) => {
             let dbar = mean_frag(scene);
             let h = if dbar.is_finite() {
@@ -154,17 +189,11 @@ pub fn resolve(scene: &Scene, sc: &Scenario) -> ResolvedResolution {
                 h0
             };
             let h = set.layer_thickness.unwrap_or(h);
-            let s0 = 0.5 * h;
+            let s0 = default_spacing(scene, h, min_block);
             let m = spacing_multiple(target);
             let s = if m > 1.0 {
                 // Coarser: bounded by the blocks and the drawpoint spacing, never below s0.
-                let dp = drawpoint_spacing(scene);
-                let cap = if dp.is_finite() {
-                    min_block.min(DRAWPOINT_SPACING_FRACTION * dp)
-                } else {
-                    min_block
-                };
-                (s0 * m).min(cap).max(s0)
+                (s0 * m).min(spacing_cap(scene, min_block)).max(s0)
             } else {
                 // Finer: bounded by the fragments, never above s0.
                 let floor = if dbar.is_finite() {
@@ -174,11 +203,14 @@ pub fn resolve(scene: &Scene, sc: &Scenario) -> ResolvedResolution {
                 };
                 (s0 * m).max(floor).min(s0)
             };
-            (h, Some(s), (s / s0).max(1.0))
+            (h, s)
         }
     };
+    // The increment follows the rule's spacing (not an explicit one) where it is coarser
+    // than 0.5 h.
+    let inc_mult = (s / (0.5 * h)).max(1.0);
     let h = set.layer_thickness.unwrap_or(h);
-    let s = set.marker_spacing.or(s).unwrap_or(0.5 * h);
+    let s = set.marker_spacing.unwrap_or(s);
     let r = 0.5 * min_open;
     let inc = set
         .draw_increment
@@ -199,6 +231,39 @@ pub fn resolve(scene: &Scene, sc: &Scenario) -> ResolvedResolution {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::model::demo::{henderson, scenario, DemoScale};
+
+    /// The demo (7.6 m blocks, h 3.8 m) keeps MassFlow's pair, spacing 0.5 h and one
+    /// opening disk an update. The mine scene (15.2 m blocks, 4 m openings: h 4 m) gets
+    /// MassFlow's 0.25 × block bounded by a quarter of the drawpoint spacing, and an
+    /// increment as many times one disk as the spacing is times 0.5 h; an explicit spacing
+    /// leaves that increment alone.
+    #[test]
+    fn default_spacing_follows_the_blocks_and_the_drawpoints() {
+        let small = henderson(DemoScale::Small, 1);
+        let sc = scenario(DemoScale::Small, 1);
+        let r = resolve(&small, &sc);
+        assert_eq!(r.marker_spacing, 0.5 * r.layer_thickness);
+        let disk = |scene: &Scene, h: f64| {
+            let (_, _, open, rho1) = scene_default(scene);
+            std::f64::consts::PI * 0.25 * open * open * h * rho1
+        };
+        assert_eq!(r.draw_increment, disk(&small, r.layer_thickness));
+
+        let mine = henderson(DemoScale::Mine, 1);
+        let mut sc = scenario(DemoScale::Mine, 1);
+        let r = resolve(&mine, &sc);
+        assert_eq!(r.layer_thickness, 4.0);
+        let dp = drawpoint_spacing(&mine);
+        assert!(dp < 4.0 * 0.25 * 15.2, "{dp}");
+        assert_eq!(r.marker_spacing, DRAWPOINT_SPACING_FRACTION * dp);
+        let m = r.marker_spacing / 2.0;
+        assert!((r.draw_increment / (disk(&mine, 4.0) * m) - 1.0).abs() < 1e-12);
+        sc.resolution.marker_spacing = Some(1.65);
+        let fine = resolve(&mine, &sc);
+        assert_eq!(fine.marker_spacing, 1.65);
+        assert_eq!(fine.draw_increment, r.draw_increment);
+    }
 
     #[test]
     fn tighter_targets_never_give_coarser_spacing() {
