@@ -788,6 +788,11 @@ impl Bins {
         self.at.pop();
     }
 
+    /// Rows binned in cell `c`, in no order.
+    pub fn list(&self, c: usize) -> &[u32] {
+        &self.lists[c]
+    }
+
     /// Rows binned in `cells` (which may repeat), in ascending order, into `out`.
     pub fn rows_in(&mut self, cells: &[usize], out: &mut Vec<u32>) {
         out.clear();

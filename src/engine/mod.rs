@@ -697,15 +697,22 @@ impl<'a> Engine<'a> {
                 }
             }
         }
+        // Each row's block is found in parallel; the masses are then summed in row order.
         let mk = &self.markers;
-        for &k in &self.rows {
-            let k = k as usize;
-            if let Some(c) = bm.cell([mk.x[k], mk.y[k], mk.z[k]]) {
-                if cols[c[0] + nx * c[1]] {
-                    if let Some(b) = block(c[0], c[1], c[2]) {
-                        mass[b] += mk.mass[k];
-                    }
-                }
+        let blocks: Vec<u32> = self
+            .rows
+            .par_iter()
+            .map(|&k| {
+                let k = k as usize;
+                bm.cell([mk.x[k], mk.y[k], mk.z[k]])
+                    .filter(|c| cols[c[0] + nx * c[1]])
+                    .and_then(|c| block(c[0], c[1], c[2]))
+                    .map_or(u32::MAX, |b| b as u32)
+            })
+            .collect();
+        for (&k, &b) in self.rows.iter().zip(&blocks) {
+            if b != u32::MAX {
+                mass[b as usize] += mk.mass[k as usize];
             }
         }
         let fill = self.scenario.rilling.air_fill;
@@ -890,48 +897,50 @@ impl<'a> Engine<'a> {
     }
 
     /// Recomputes the mobilised-property sums of the disks of the IMZs `which` (those
-    /// drawing this period) from the markers inside them, visiting only the markers binned
-    /// where those IMZs reach. Sums run over marker rows in ascending order, as a pass over
-    /// every marker would; the other IMZs' sums are not read until they draw, and are
-    /// refreshed then.
+    /// drawing this period) from the markers inside them, in parallel over the IMZs. Each
+    /// IMZ visits only the markers binned in the cells its grid footprint covers, and sums
+    /// them in ascending row order, as a pass over every marker would; the other IMZs' sums
+    /// are not read until they draw, and are refreshed then.
     fn refresh_mobilised(&mut self, which: &[usize]) {
         if which.is_empty() {
             return;
         }
         let bm = &self.scene.blocks;
-        for &d in which {
-            self.imzs[d]
-                .mobilised
-                .iter_mut()
-                .for_each(|m| *m = Mobilised::default());
-        }
-        let geoms: Vec<ImzGeom> = self.imzs.iter().map(|m| m.geom.clone()).collect();
-        let grid = ImzGrid::build(
-            &geoms,
-            which,
-            self.extent.0,
-            self.extent.1,
-            self.grid_cell(),
-        );
-        self.rows_near(&geoms, which, Vec::new());
-        let mk = &self.markers;
-        for &k in &self.rows {
-            let k = k as usize;
-            let p = [mk.x[k], mk.y[k], mk.z[k]];
-            let b = mk.block[k] as usize;
-            for &d in grid.at(p[0], p[1]) {
-                let g = &geoms[d as usize];
-                if g.contains(p) {
-                    let i = ((p[2] - g.z0) / g.h) as usize;
-                    let m = &mut self.imzs[d as usize].mobilised[i];
-                    m.d += mk.frag[k];
-                    m.phi += bm.friction[b];
-                    m.rho1 += bm.density[b] * (1.0 - bm.n1[b]);
-                    m.rho_s += bm.density[b];
-                    m.count += 1;
+        let grid = ImzGrid::build(&[], &[], self.extent.0, self.extent.1, self.grid_cell());
+        let mut wanted = vec![false; self.imzs.len()];
+        which.iter().for_each(|&d| wanted[d] = true);
+        let (mk, bins) = (&self.markers, &self.bins);
+        self.imzs
+            .par_iter_mut()
+            .filter(|imz| wanted[imz.id])
+            .for_each(|imz| {
+                imz.mobilised
+                    .iter_mut()
+                    .for_each(|m| *m = Mobilised::default());
+                let [i0, i1, j0, j1] = grid.cell_range(&imz.geom);
+                let mut rows = Vec::new();
+                for j in j0..=j1 {
+                    for i in i0..=i1 {
+                        rows.extend_from_slice(bins.list(i + grid.nx() * j));
+                    }
                 }
-            }
-        }
+                rows.sort_unstable();
+                let g = &imz.geom;
+                for k in rows {
+                    let k = k as usize;
+                    let p = [mk.x[k], mk.y[k], mk.z[k]];
+                    if g.contains(p) {
+                        let b = mk.block[k] as usize;
+                        let i = ((p[2] - g.z0) / g.h) as usize;
+                        let m = &mut imz.mobilised[i];
+                        m.d += mk.frag[k];
+                        m.phi += bm.friction[b];
+                        m.rho1 += bm.density[b] * (1.0 - bm.n1[b]);
+                        m.rho_s += bm.density[b];
+                        m.count += 1;
+                    }
+                }
+            });
     }
 
     /// Writes the period's extraction rows and snapshots, and applies the correction.
