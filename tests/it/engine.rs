@@ -1305,8 +1305,11 @@ fn multi_rate_cadence_saves_steps_and_keeps_the_draw() {
     };
     let (res, steps_on, on) = run(None);
     let (_, steps_off, off) = run(Some(0.0));
-    // The default: half a marker spacing.
-    assert_eq!(res.max_marker_move, 0.5 * res.marker_spacing);
+    // The default: one marker spacing or half a disk, whichever is smaller (here equal).
+    assert_eq!(
+        res.max_marker_move,
+        res.marker_spacing.min(0.5 * res.layer_thickness)
+    );
     let ratio = steps_on as f64 / steps_off as f64;
     eprintln!("marker steps {steps_on} with the cadence, {steps_off} without: {ratio:.3}");
     assert!(ratio < 0.6, "{ratio}");
