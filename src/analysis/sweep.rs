@@ -116,13 +116,20 @@ pub enum SweepError {
     Chart(#[from] ChartError),
 }
 
-/// The resolution `mult` times `default`.
+/// The resolution `mult` times `default`; `max_marker_move` follows h and the spacing as
+/// the default rule does (`resolution::max_move_rule`), in proportion to the default's.
 fn times(default: &ResolvedResolution, mult: [f64; 3]) -> ResolvedResolution {
+    let (h, s) = (
+        default.layer_thickness * mult[0],
+        default.marker_spacing * mult[1],
+    );
+    let rule = |s: f64, h: f64| crate::engine::resolution::max_move_rule(s, h);
     ResolvedResolution {
-        layer_thickness: default.layer_thickness * mult[0],
-        marker_spacing: default.marker_spacing * mult[1],
+        layer_thickness: h,
+        marker_spacing: s,
         draw_increment: default.draw_increment * mult[2],
-        max_marker_move: default.max_marker_move * mult[1],
+        max_marker_move: default.max_marker_move * rule(s, h)
+            / rule(default.marker_spacing, default.layer_thickness),
     }
 }
 

@@ -111,6 +111,11 @@ fn scene_default(scene: &Scene) -> (f64, f64, f64, f64) {
     (h, min_block, min_open, rho1)
 }
 
+/// The default `max_marker_move` at marker spacing `s` and disk thickness `h`.
+pub fn max_move_rule(s: f64, h: f64) -> f64 {
+    (MAX_MOVE_FRACTION * s).min(MAX_MOVE_OF_H * h)
+}
+
 /// Default marker spacing as a fraction of the smallest block dimension: MassFlow's.
 pub const BLOCK_SPACING_FRACTION: f64 = 0.25;
 
@@ -230,8 +235,7 @@ pub fn resolve(scene: &Scene, sc: &Scenario) -> ResolvedResolution {
         max_marker_move: if sc.mechanisms.fines {
             0.0
         } else {
-            set.max_marker_move
-                .unwrap_or((MAX_MOVE_FRACTION * s).min(MAX_MOVE_OF_H * h))
+            set.max_marker_move.unwrap_or(max_move_rule(s, h))
         },
     }
 }
