@@ -12,7 +12,7 @@
 //!   MassFlow's 0.5 × block, sets neither. Where h is 0.5 × block (the demo: 7.6 m blocks,
 //!   h 3.8 m) this is MassFlow's pair, 0.5 h; a mine-scale model of 15.2 m blocks with 4 m
 //!   openings gets h 4 m and 3.4 m markers (drawpoint spacing 13.6 m), not 2 m ones with
-//!   6.7× the markers for a sampling error the sweep puts at half (README, "Mine scale").
+//!   6.7× the markers for half the daily grade error (README, "Mine scale").
 //! - draw increment = the tonnes of the smallest opening disk (π (w/2)² h) at dilated
 //!   density, times the spacing over 0.5 h when the spacing is coarser than that (as for
 //!   an accuracy target, below: a marker moves about as many spacings per update as with
