@@ -16,11 +16,12 @@
 //! - draw increment = the tonnes of the smallest opening disk (π (w/2)² h) at dilated
 //!   density, times the spacing over 0.5 h when the spacing is coarser than that (as for
 //!   an accuracy target, below: a marker moves about as many spacings per update as with
-//!   MassFlow's pair). The increment is the marker-update interval: the IMZ itself grows in cycles
-//!   of at most a quarter of its lowest disk (`Imz::draw`), and markers then move by the
-//!   void passed "since the last marker update" (summary §3.3). The axial marker of a cone
-//!   profile moves up to 3 disks per update at this size; a third of it keeps it within
-//!   one disk at three times the cost (see the speed–accuracy sweep in the README).
+//!   MassFlow's pair). The increment is the marker-update interval: the IMZ itself grows
+//!   in cycles of at most a sixteenth of its lowest disk (`Imz::draw`), and markers then
+//!   move by the void passed "since the last marker update" (summary §3.3). The axial
+//!   marker of a cone profile moves up to 3 disks per update at one disk; a third of it
+//!   keeps it within one disk at three times the cost (see the speed–accuracy sweep in the
+//!   README).
 //!
 //! # From an accuracy target
 //! The speed–accuracy sweep (`analysis::sweep`, README "Speed and accuracy") measured what
@@ -42,10 +43,10 @@
 //! thinner than d̄ (h/d̄ ≥ 1, `stability`). The increment follows the spacing: the opening
 //! disk's tonnes times the spacing over 0.5 h when coarser than 0.5 h (a marker then moves
 //! about as many spacings per update as at the demo's default), one disk when finer (a finer
-//! increment costs time and buys nothing measurable). The sweep supports it: at spacing × 2 the error is 0.269, 0.266 and
-//! 0.269% at increment × 1, 2 and 4; at the default spacing, increment × 2 adds 0.003 points
-//! and × 4 adds 0.019. Each step is monotone in T, so a tighter target never gives a
-//! coarser resolution.
+//! increment costs time and buys nothing measurable). The sweep supports it: at spacing × 2
+//! the error is 0.269, 0.266 and 0.269% at increment × 1, 2 and 4; at the default spacing,
+//! increment × 2 adds 0.003 points and × 4 adds 0.019. Each step is monotone in T, so a
+//! tighter target never gives a coarser resolution.
 //!
 //! The constants are fitted on the demo's first 6 periods; another scene's error at the same
 //! multiples differs as its grade variability and its tonnes per drawpoint-period do. Run
@@ -84,9 +85,10 @@ pub const FRAG_FRACTION: f64 = 1.0;
 /// and no measurable change over the mine scene's first 400 days (README, "Mine scale").
 pub const MAX_MOVE_FRACTION: f64 = 1.0;
 
-/// ... and as a fraction of the disk thickness h, whichever is smaller: the motion field
-/// changes from disk to disk, so a marker's own step stays within half a disk (where disks
-/// are thinner than the markers are apart, as in the thin-disk tests of `stability`).
+/// Default `resolution.max_marker_move` as a fraction of the disk thickness h, where that is
+/// less than [`MAX_MOVE_FRACTION`] × the spacing: the motion field changes from disk to
+/// disk, so a marker's own step stays within half a disk (this binds where disks are
+/// thinner than the markers are apart, as in the thin-disk test of `stability`).
 pub const MAX_MOVE_OF_H: f64 = 0.5;
 
 /// The scene default (the rule in the module documentation, first part).
@@ -187,7 +189,7 @@ fn mean_frag(scene: &Scene) -> f64 {
 pub fn resolve(scene: &Scene, sc: &Scenario) -> ResolvedResolution {
     let (h0, min_block, min_open, rho1) = scene_default(scene);
     let set = &sc.resolution;
-    // Spacing (if the target chooses it) and the increment as a multiple of one disk.
+    // h and the rule's spacing: the scene default, or the one for the accuracy target.
     let (h, s) = match set.target_grade_rmse {
         None => {
             let h = set.layer_thickness.unwrap_or(h0);
@@ -221,7 +223,6 @@ pub fn resolve(scene: &Scene, sc: &Scenario) -> ResolvedResolution {
     // The increment follows the rule's spacing (not an explicit one) where it is coarser
     // than 0.5 h.
     let inc_mult = (s / (0.5 * h)).max(1.0);
-    let h = set.layer_thickness.unwrap_or(h);
     let s = set.marker_spacing.unwrap_or(s);
     let r = 0.5 * min_open;
     let inc = set
