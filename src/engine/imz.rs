@@ -170,18 +170,24 @@ impl ImzGrid {
             ((extent[1] / cell).ceil() as usize).max(1),
         ];
         let mut counts = vec![0u32; n[0] * n[1] + 1];
-        let mut grid = ImzGrid {
-            origin,
-            cell,
-            n,
-            start: Vec::new(),
-            ids: Vec::new(),
-        };
         let ranges: Vec<_> = which
             .iter()
             .map(|&d| {
-                let [i0, i1, j0, j1] = grid.cell_range(&geoms[d]);
-                (d, i0, i1, j0, j1)
+                let g = &geoms[d];
+                let r = g.max_radius();
+                let lo = |c: f64, o: f64, m: usize| {
+                    (((c - r - o) / cell).floor().max(0.0) as usize).min(m - 1)
+                };
+                let hi = |c: f64, o: f64, m: usize| {
+                    (((c + r - o) / cell).floor().max(0.0) as usize).min(m - 1)
+                };
+                (
+                    d,
+                    lo(g.x, origin[0], n[0]),
+                    hi(g.x, origin[0], n[0]),
+                    lo(g.y, origin[1], n[1]),
+                    hi(g.y, origin[1], n[1]),
+                )
             })
             .collect();
         for &(_, i0, i1, j0, j1) in &ranges {
@@ -205,32 +211,13 @@ impl ImzGrid {
                 }
             }
         }
-        grid.start = counts;
-        grid.ids = ids;
-        grid
-    }
-
-    /// The cells [i0, i1] × [j0, j1] where IMZ `g` is listed: those its plan bounding box
-    /// (of its widest disk) overlaps, clamped to the grid. Cell (i, j) is i + n_x j, as in
-    /// [`Bins`](super::markers::Bins) over the same rectangle and cell.
-    pub fn cell_range(&self, g: &ImzGeom) -> [usize; 4] {
-        let (origin, cell, n) = (self.origin, self.cell, self.n);
-        let r = g.max_radius();
-        let lo =
-            |c: f64, o: f64, m: usize| (((c - r - o) / cell).floor().max(0.0) as usize).min(m - 1);
-        let hi =
-            |c: f64, o: f64, m: usize| (((c + r - o) / cell).floor().max(0.0) as usize).min(m - 1);
-        [
-            lo(g.x, origin[0], n[0]),
-            hi(g.x, origin[0], n[0]),
-            lo(g.y, origin[1], n[1]),
-            hi(g.y, origin[1], n[1]),
-        ]
-    }
-
-    /// Cells along x.
-    pub fn nx(&self) -> usize {
-        self.n[0]
+        ImzGrid {
+            origin,
+            cell,
+            n,
+            start: counts,
+            ids,
+        }
     }
 
     /// IMZ ids whose footprint may cover (x, y).

@@ -898,7 +898,7 @@ impl<'a> Engine<'a> {
 
     /// Recomputes the mobilised-property sums of the disks of the IMZs `which` (those
     /// drawing this period) from the markers inside them, in parallel over the IMZs. Each
-    /// IMZ visits only the markers binned in the cells its grid footprint covers, and sums
+    /// IMZ visits only the markers binned in the cells its bounding box covers, and sums
     /// them in ascending row order, as a pass over every marker would; the other IMZs' sums
     /// are not read until they draw, and are refreshed then.
     fn refresh_mobilised(&mut self, which: &[usize]) {
@@ -906,7 +906,6 @@ impl<'a> Engine<'a> {
             return;
         }
         let bm = &self.scene.blocks;
-        let grid = ImzGrid::build(&[], &[], self.extent.0, self.extent.1, self.grid_cell());
         let mut wanted = vec![false; self.imzs.len()];
         which.iter().for_each(|&d| wanted[d] = true);
         let (mk, bins) = (&self.markers, &self.bins);
@@ -917,15 +916,16 @@ impl<'a> Engine<'a> {
                 imz.mobilised
                     .iter_mut()
                     .for_each(|m| *m = Mobilised::default());
-                let [i0, i1, j0, j1] = grid.cell_range(&imz.geom);
-                let mut rows = Vec::new();
-                for j in j0..=j1 {
-                    for i in i0..=i1 {
-                        rows.extend_from_slice(bins.list(i + grid.nx() * j));
-                    }
-                }
-                rows.sort_unstable();
+                // A marker inside the IMZ lies in its plan bounding box, so in these cells.
                 let g = &imz.geom;
+                let r = g.max_radius();
+                let mut cells = Vec::new();
+                bins.cells_in([g.x - r, g.x + r], [g.y - r, g.y + r], 0, &mut cells);
+                let mut rows: Vec<u32> = cells
+                    .iter()
+                    .flat_map(|&c| bins.list(c).iter().copied())
+                    .collect();
+                rows.sort_unstable();
                 for k in rows {
                     let k = k as usize;
                     let p = [mk.x[k], mk.y[k], mk.z[k]];
@@ -1244,6 +1244,7 @@ fn tributary(scene: &Scene) -> Vec<f64> {
             if n == 0 {
                 continue;
             }
+            let share = area * rho / n as f64;
             for sj in 0..sub[1] {
                 for si in 0..sub[0] {
                     let x =
@@ -1257,7 +1258,7 @@ fn tributary(scene: &Scene) -> Vec<f64> {
                             da.total_cmp(&db)
                         })
                         .unwrap_or(0);
-                    out[near] += area * rho / n as f64;
+                    out[near] += share;
                 }
             }
         }
