@@ -4,20 +4,27 @@
 //! Markers stand for fragments of one size d_p (`engine::fragmentation`: sampled from the
 //! block's primary distribution, reduced by attrition). A marker whose size is below the
 //! local mean d̄ percolates, at each marker update in which it is sheared, by a distance L
-//! whose mean is the summary's percolation law
+//! whose mean is the summary's percolation law and whose spread is MassFlow's:
 //!
 //! ```text
-//! L̄  = k1 Γ d̄ exp(−k2 d_p / d̄)        k1 = 11, k2 = 4.5 (block columns perc_k1, perc_k2)
-//! L* = sqrt(VMR · L̄)                   VMR = 0.5 m (block column perc_vmr)
+//! L̄  = k1 Γ d̄ exp(−k2 d_p / d̄)        k1 = 11, k2 = 4.5 (summary §7.3; block columns perc_k1, perc_k2)
+//! L* = sqrt(VMR · L̄)                   VMR = 0.5 m (MassFlow's default; block column perc_vmr)
 //! ```
 //!
 //! - Γ is the marker's shear strain in this update, Δz_m / min(R, w), summed over the IMZs
 //!   that move it (`markers::MotionField::step`).
 //! - d̄ is the Γ-weighted mean fragment size of the disks that shear it (each disk's d̄ is the
 //!   mean of the markers inside it, refreshed each period).
-//! - VMR is the variance-to-mean ratio of the distance, a length. The summary's form is
+//! - VMR is the variance-to-mean ratio of the distance, a length. The summary's spread is
 //!   L* = sqrt(d_b L̄), i.e. VMR = d_b, the bed's fragment size, for a Péclet number of 2.
-//!   MassFlow's default of 0.5 suits mine-scale fragments; give d̄ for model-scale scenes.
+//!   The default of 0.5 m is not the summary's: it is MassFlow's (`PercVMR`), which suits
+//!   mine-scale fragments; give the bed's d̄ in `perc_vmr` for the summary's form, and at
+//!   model scale.
+//! - **Our choice: only fines percolate.** A marker whose fragment is at least the local d̄
+//!   does not percolate. The summary's law has no cut-off (at d_p = d̄ it still gives
+//!   exp(−4.5) ≈ 1.1% of the rate of a vanishing fragment); the cut-off is ours. The
+//!   law was measured for fines percolating through the pores of a coarser bed (summary
+//!   §7.1); a fragment as large as the bed's mean is the bed, and moves with it.
 //!
 //! # Sampling (choice where the summary is silent)
 //! The summary samples a Gaussian with mean L̄ and standard deviation L*. Per marker update,
@@ -222,19 +229,19 @@ mod tests {
     /// spread sqrt(VMR L̄) of the formula. VMR = 0.01 m gives a Gamma shape of 0.39, so the
     /// standard errors are 0.5 % (mean) and 0.7 % (standard deviation); tolerances 3 % and
     /// 4 %.
-    /// A disk of radius r (unchanged since the last update) with 0.5 m³ of void passed in,
-    /// w = 10 m, d̄ = 0.1 m, in open ground.
+    /// A disk of radius r (unchanged since the last update) with 0.5 m³ of void passed
+    /// through it, w = 10 m, d̄ = 0.1 m, in open ground.
     fn disk(r: f64) -> DiskMotion {
         DiskMotion {
             r,
             r_old: r,
             dv: 0.5,
+            dv_out: 0.5,
             w: 10.0,
-            jump: 0.1,
-            n1: 0.45,
             sigma_n: 50.0,
             d: 0.1,
             area_frac: 1.0,
+            flow_frac: 1.0,
         }
     }
 

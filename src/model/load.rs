@@ -24,7 +24,8 @@
 //!   An axis with a single centre value (a one-block-thick model) takes the smallest size
 //!   of the other axes. Every centre must sit a whole number of blocks from the lowest
 //!   (`mixed-block-size` names the first that does not; `off-grid` names the rows).
-//! - Defaults: `cave_period` 0; `perc_k1` 11, `perc_k2` 4.5, `perc_vmr` 0.5 (summary §7.3).
+//! - Defaults: `cave_period` 0; `perc_k1` 11, `perc_k2` 4.5 (summary §7.3), `perc_vmr`
+//!   0.5 m (MassFlow's default; the summary's spread uses the bed's fragment size d_b).
 //! - `frag` = `frag_size`, else the Weibull mean `frag_scale · Γ(1 + 1/frag_shape)`.
 //! - `tensile` = `tensile_strength`, else the Weibull mean of `tensile_shape`/`tensile_scale`,
 //!   else 0.1 × `ucs` (MassFlow's ratio), else NaN.
