@@ -475,7 +475,7 @@ pub const MANIFEST: TableSpec = TableSpec {
             "mass_balance",
             Str,
             "-",
-            "Scheduled, credited and shortfall tonnes, overall and per drawpoint",
+            "Scheduled, credited and shortfall tonnes, overall and per drawpoint; the distribution of the correction factor (rows, median, p10, p90, rows at each bound)",
             true,
             &[],
         ),

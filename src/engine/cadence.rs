@@ -35,11 +35,14 @@ use serde::{Deserialize, Serialize};
 /// Highest level: a marker steps at least once every 2^MAX_LEVEL updates.
 pub const MAX_LEVEL: u8 = 6;
 
-/// Void passed into a disk over a level's window, and the disk's radius when it began.
+/// Void passed into and out of a disk over a level's window, and the disk's radius when it
+/// began.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
 pub struct Window {
     /// Δv_i summed over the window, m³.
     pub dv: f64,
+    /// Void passed out through the disk's top, summed over the window, m³.
+    pub dv_out: f64,
     /// R_i at the start of the window, m (0 for a disk opened since).
     pub r_old: f64,
 }
@@ -81,15 +84,16 @@ impl Cadence {
     }
 }
 
-/// Adds one update's void per disk (`dv`) to each level's windows, opening windows for new
-/// disks (they began at radius 0).
-pub fn accumulate(windows: &mut [Vec<Window>], dv: impl Iterator<Item = f64> + Clone) {
+/// Adds one update's void per disk (in and out, `dv`) to each level's windows, opening
+/// windows for new disks (they began at radius 0).
+pub fn accumulate(windows: &mut [Vec<Window>], dv: impl Iterator<Item = (f64, f64)> + Clone) {
     for w in windows.iter_mut() {
-        for (i, v) in dv.clone().enumerate() {
+        for (i, (v, out)) in dv.clone().enumerate() {
             if i == w.len() {
                 w.push(Window::default());
             }
             w[i].dv += v;
+            w[i].dv_out += out;
         }
     }
 }
@@ -97,7 +101,10 @@ pub fn accumulate(windows: &mut [Vec<Window>], dv: impl Iterator<Item = f64> + C
 /// Starts a new window: no void yet, radii as they are now.
 pub fn restart(window: &mut Vec<Window>, radius: &[f64]) {
     window.clear();
-    window.extend(radius.iter().map(|&r| Window { dv: 0.0, r_old: r }));
+    window.extend(radius.iter().map(|&r| Window {
+        r_old: r,
+        ..Window::default()
+    }));
 }
 
 #[cfg(test)]
@@ -136,17 +143,19 @@ mod tests {
         let mut w = vec![Vec::new(), Vec::new()];
         restart(&mut w[0], &[2.0]);
         restart(&mut w[1], &[2.0]);
-        accumulate(&mut w, [1.0, 0.5].into_iter());
-        accumulate(&mut w, [1.0, 0.5].into_iter());
+        accumulate(&mut w, [(1.0, 0.5), (0.5, 0.0)].into_iter());
+        accumulate(&mut w, [(1.0, 0.5), (0.5, 0.0)].into_iter());
         assert_eq!(
             w[0],
             vec![
                 Window {
                     dv: 2.0,
+                    dv_out: 1.0,
                     r_old: 2.0
                 },
                 Window {
                     dv: 1.0,
+                    dv_out: 0.0,
                     r_old: 0.0
                 }
             ]
@@ -156,6 +165,7 @@ mod tests {
             w[0][1],
             Window {
                 dv: 0.0,
+                dv_out: 0.0,
                 r_old: 1.0
             }
         );

@@ -7,9 +7,42 @@
 //!
 //! ```text
 //! r   = min(1, (10 d̄ h / (π R_i²)) · max(0, 1 − (R_i − R_{i−1}) tan(45° + φ/2) / h)^q)
-//! R_i ← sqrt(R_i² + r v_i / (π h (n1 − n0)))
+//! R_i ← sqrt(R_i² + r v_i / (π h ε)),   ε = (n1 − n0) / (1 − n1)
 //! v_{i+1} = (1 − r) v_i
 //! ```
+//!
+//! # The volume balance
+//! Three volumes meet in a disk, and each is a bulk volume at a stated porosity:
+//! - the void Δv opened at the drawpoint is the bulk volume, at the dilated porosity n1, of
+//!   the tonnes drawn: Δv = tonnes / (ρ_s (1 − n1)), solids Δv (1 − n1);
+//! - the ring R_i → R_i′ that a disk gains is stagnant ground at n0 (bulk π h (R_i′² − R_i²),
+//!   solids × (1 − n0)) that dilates to n1 at constant solids. Its bulk then grows by the
+//!   factor (1 − n0)/(1 − n1): it creates ε = (n1 − n0)/(1 − n1) of void per unit of its own
+//!   bulk, and that is what fills the share r v_i;
+//! - the material inside the disk stays at n1 throughout.
+//!
+//! So r v_i = π h (R_i′² − R_i²) ε. Summed over a draw whose void all stays in the IMZ, the
+//! ground mobilised, V, satisfies V (n1 − n0) = Σ Δv (1 − n1): the solids that left are the
+//! solids the dilation freed, and the IMZ's material is at n1, the stagnant ground at n0.
+//!
+//! **Where this departs from the summary.** The summary prints the update as
+//! R_i ← sqrt(R_i² + r v_i / (π h (n1 − n0))): it credits a ring of bulk V with V (n1 − n0)
+//! of void. That is the void created only when the ring's bulk is counted at a porosity
+//! of zero; ground going from n0 to n1 at constant solids creates V (n1 − n0)/(1 − n1). As
+//! printed, the update makes the IMZ 1/(1 − n1) times too large for the void drawn (1.8×
+//! at n1 = 0.45), and the marker field, which moves exactly the volume drawn, cannot fill
+//! it at n1: the markers in the IMZ stay denser than n1 (by ~7% at n0 0.35, n1 0.45), the
+//! drawpoints draw that much more marker mass than scheduled, and a mass correction of
+//! ~0.90 hid it. The form above is the one that conserves mass. The r-law itself is the
+//! summary's, unchanged. The far-field width and the base angle under both forms are
+//! measured side by side in the README's validation section.
+//!
+//! The marker pass reads the same balance (`engine::markers`): each disk records the void
+//! that entered its base (`DiskMotion::dv`) and the void that left through its top
+//! (`DiskMotion::dv_out`, which includes void that left the IMZ for the free surface or an
+//! air gap). The vertical move stretches the disk's material by their difference, the void
+//! the disk absorbed; the radial move takes that same volume out of the interior and gives
+//! it to the ring, which so dilates from n0 to n1 while the interior stays at n1.
 //!
 //! # Choices where the summary is silent
 //! - **Threshold slope.** The summary gives no value for the threshold negative slope β_T
@@ -19,9 +52,11 @@
 //!   that opening radius, so the base can widen only up to the 45 + φ/2 limit.
 //! - **New disks.** When void reaches the top disk a new, empty disk is opened on top
 //!   (R = 0, so r = 1 and the void dilates it). A disk is only opened where the ground on
-//!   the axis is flowable; otherwise the void stays as an air gap (`Imz::air`). Once the
-//!   ground above caves, the next void to reach the top carries the stored air up with it
-//!   into the new disk, so the air gap closes as the cave catches up.
+//!   the axis is flowable; otherwise the void leaves the IMZ through the top disk: under
+//!   uncaved ground it is an air gap (`Imz::air`) above the top disk's markers, and above
+//!   the top of the model it is the subsidence of the free surface. Once the ground above
+//!   caves, the next void to reach the top carries the stored air up with it into the new
+//!   disk, so the air gap closes as the cave catches up.
 //! - **Properties.** d̄ and φ of a disk are the mobilised properties (mean of the markers in
 //!   the disk, refreshed each period; the stagnant ones until it holds markers). n0 and n1
 //!   are the stagnant properties: the mean over 24 perimeter points of the block model and
@@ -40,10 +75,10 @@
 //!   so the marker pass divides vertical moves by A_f.
 //! - **Unflowable perimeter.** Points in uncaved blocks or outside the model cannot
 //!   dilate; the fraction f of flowable points scales the area that can grow:
-//!   R_i ← sqrt(R_i² + r v_i / (π h (n1 − n0) f)); with f = 0 the disk cannot widen (r = 0).
+//!   R_i ← sqrt(R_i² + r v_i / (π h ε f)); with f = 0 the disk cannot widen (r = 0).
 //!   A disk that reaches its reach widens no further and passes the rest of its void up.
 //! - **Integration.** r depends on R_i, which grows as the void is taken, so within a disk
-//!   the law is integrated over the void (d(R_i²) = r(R_i) dv / (π h Δn f)) in sub-steps
+//!   the law is integrated over the void (d(R_i²) = r(R_i) dv / (π h ε f)) in sub-steps
 //!   small against the distance over which r changes (`Imz::absorb`). The void a disk
 //!   takes is then exactly the dilation of the ring it gains, r falls to zero as the
 //!   boundary reaches 45 + φ/2 (never past it), and a new top disk stops where the law says
@@ -102,10 +137,17 @@ fn r_law_sloped(d: f64, h: f64, r_i: f64, r_below: f64, slope: f64, q: f64) -> f
     (10.0 * d * h / (PI * r_i * r_i) * bracket.powf(q)).min(1.0)
 }
 
-/// The radius update R_i ← sqrt(R_i² + r v_i / (π h Δn f)).
+/// The void ε = (n1 − n0)/(1 − n1) that ground creates per unit of its bulk when it dilates
+/// from n0 to n1 at constant solids (`jump` = n1 − n0; see the module docs).
 #[inline]
-pub fn grown_radius(r_i: f64, r: f64, v: f64, h: f64, jump: f64, flow_frac: f64) -> f64 {
-    (r_i * r_i + r * v / (PI * h * jump * flow_frac)).sqrt()
+pub fn dilation(jump: f64, n1: f64) -> f64 {
+    jump / (1.0 - n1)
+}
+
+/// The radius update R_i ← sqrt(R_i² + r v_i / (π h ε f)), ε the [`dilation`].
+#[inline]
+pub fn grown_radius(r_i: f64, r: f64, v: f64, h: f64, eps: f64, flow_frac: f64) -> f64 {
+    (r_i * r_i + r * v / (PI * h * eps * flow_frac)).sqrt()
 }
 
 /// Geometry of one IMZ as seen by other IMZs and the marker pass.
@@ -413,17 +455,21 @@ pub struct DiskMotion {
     pub r_old: f64,
     /// Δv_i: void passed up into this disk since the last marker update, m³.
     pub dv: f64,
+    /// Void passed out through this disk's top since the last marker update, m³: Δv_{i+1}
+    /// for a disk below another (less the air a new disk above took in), or the void that
+    /// left the IMZ for the free surface or an air gap. Δv_i − this is the void the disk's
+    /// ring absorbed by dilating.
+    pub dv_out: f64,
     /// Shear band width w_i = factor × d̄, m.
     pub w: f64,
-    /// Porosity jump used for the radial move.
-    pub jump: f64,
-    /// n1 of the disk.
-    pub n1: f64,
     /// Janssen normal stress σ_n = ρ_s (1 − n1) g R / (2 tan φ), kPa.
     pub sigma_n: f64,
     /// Flowable share A_f of the disk's area: the void spreads over the material that
     /// exists, so vertical moves are divided by it (1 for a disk in open ground).
     pub area_frac: f64,
+    /// Flowable share f of the disk's perimeter: the rays on which a ring dilates and
+    /// pushes the interior in.
+    pub flow_frac: f64,
     /// Mean fragment size d̄ of the disk, m.
     pub d: f64,
 }
@@ -455,6 +501,10 @@ pub struct Imz {
     /// Void held under uncaved ground inside the model: the air gap above this IMZ, m³
     /// (released into the ground above once it caves).
     pub air: f64,
+    /// Void that left the IMZ through the top of the model over the run, m³: the
+    /// subsidence of the free surface that the top disk's markers make.
+    #[serde(default)]
+    pub vented: f64,
     /// True once the top could not open a new disk.
     pub blocked: bool,
     /// Per cadence level L ≥ 1 (index L − 1), per disk: the void and starting radius of
@@ -512,6 +562,7 @@ impl Imz {
             next_site: vec![0.0],
             reach: vec![f64::NAN],
             air: 0.0,
+            vented: 0.0,
             blocked: false,
             windows: Vec::new(),
             drew_at: 0,
@@ -609,6 +660,8 @@ impl Imz {
                     // markers make there, not air.
                     if axis[2] < g.blocks.z_max() {
                         self.air += v;
+                    } else {
+                        self.vented += v;
                     }
                     self.blocked = true;
                     return;
@@ -644,30 +697,33 @@ impl Imz {
             };
             if r > 0.0 {
                 let jump = self.usable_jump(i, r_below, slope, g, p);
-                let f = self.stagnant[i].flow_frac;
-                self.motion[i].jump = jump;
+                let st = self.stagnant[i];
+                let (f, eps) = (st.flow_frac, dilation(jump, st.n1));
                 if f > 0.0 {
                     let cap = self.cap(i, g, p);
-                    v = self.absorb(i, v, (r_at, r), r_below, d, slope, jump, f, cap, p);
+                    v = self.absorb(i, v, (r_at, r), r_below, d, slope, eps, f, cap, p);
                     // The remainder of a cycle that has all but vanished is absorbed here,
                     // so the cycle ends and the void is conserved.
                     if v <= 1e-12 * v0 {
-                        let k = PI * h * jump * f;
+                        let k = PI * h * eps * f;
                         let r_i = self.geom.radius[i];
                         self.geom.radius[i] = (r_i * r_i + v / k).sqrt().min(cap);
                         v = 0.0;
                     }
                 }
             }
+            // What this disk did not absorb leaves through its top: into the disk above, or
+            // out of the IMZ (the free surface subsides, or an air gap opens).
+            self.motion[i].dv_out += v;
             i += 1;
         }
     }
 
     /// Fills void `v` entering disk i by the r-law and returns the void passed up to disk
-    /// i + 1.
+    /// i + 1. `eps` is the ring's [`dilation`] ε, `f` its flowable share.
     ///
     /// r depends on R_i, which grows as the void is taken, so the law is integrated over
-    /// the void, d(R_i²) = r(R_i) dv / (π h Δn f), in sub-steps over which R_i moves by at
+    /// the void, d(R_i²) = r(R_i) dv / (π h ε f), in sub-steps over which R_i moves by at
     /// most a tenth of the distance on which r changes (d ln r / dR = −2/R − q tan β / (h ·
     /// bracket)). Evaluating r once per cycle instead lets a new or small disk (r = 1) take
     /// a whole cycle's void: it then overshoots both the 45 + φ/2 limit, where r must reach
@@ -682,13 +738,13 @@ impl Imz {
         r_below: f64,
         d: f64,
         tan: f64,
-        jump: f64,
+        eps: f64,
         f: f64,
         cap: f64,
         p: &ImzParams,
     ) -> f64 {
         let h = self.geom.h;
-        let k = PI * h * jump * f;
+        let k = PI * h * eps * f;
         let mut big_r = self.geom.radius[i];
         let (mut rem, mut passed) = (v, 0.0);
         // r at R_i as the caller found it, unless free widening moved R_i since.
@@ -793,13 +849,14 @@ impl Imz {
     }
 
     /// The motion over cadence level `level`'s window (≥ 1): the disks as they are now, with
-    /// the window's void Δv_i and starting radius R_i^old.
+    /// the window's void in and out and starting radius R_i^old.
     pub fn window_motion(&self, level: usize) -> Vec<DiskMotion> {
         self.motion
             .iter()
             .zip(&self.windows[level - 1])
             .map(|(m, w)| DiskMotion {
                 dv: w.dv,
+                dv_out: w.dv_out,
                 r_old: w.r_old,
                 ..*m
             })
@@ -818,12 +875,9 @@ impl Imz {
             let m = &mut self.motion[i];
             m.r = self.geom.radius[i];
             m.area_frac = st.area_frac.max(1.0 / 96.0);
+            m.flow_frac = st.flow_frac.max(1.0 / PERIMETER_POINTS as f64);
             m.w = p.shear_band_factor * d;
             m.d = d;
-            m.n1 = if st.n1 > 0.0 { st.n1 } else { m.n1 };
-            if m.jump <= 0.0 {
-                m.jump = st.jump().max(p.min_jump);
-            }
             m.sigma_n = rho1 * 9.81 * m.r / (2.0 * phi.to_radians().tan().max(1e-6));
         }
     }
@@ -851,11 +905,19 @@ mod tests {
     }
 
     #[test]
-    fn radius_update_conserves_volume() {
-        // π h Δn (R'² − R²) = r v, exactly.
-        let (r0, r, v, h, dn) = (2.0, 0.3, 5.0, 0.5, 0.15);
-        let r1 = grown_radius(r0, r, v, h, dn, 1.0);
-        assert!((PI * h * dn * (r1 * r1 - r0 * r0) - r * v).abs() < 1e-12);
+    fn radius_update_conserves_solids() {
+        // The ring R → R' of stagnant ground at n0 dilates to n1 at constant solids and fills
+        // the share r v of the void, with the disk's material at n1 before and after:
+        // (π R² h − r v)(1 − n1) + π h (R'² − R²)(1 − n0) = π R'² h (1 − n1), exactly.
+        let (r0, r, v, h, n0, n1) = (2.0, 0.3, 5.0, 0.5, 0.3, 0.45);
+        let r1 = grown_radius(r0, r, v, h, dilation(n1 - n0, n1), 1.0);
+        let before =
+            (PI * r0 * r0 * h - r * v) * (1.0 - n1) + PI * h * (r1 * r1 - r0 * r0) * (1.0 - n0);
+        let after = PI * r1 * r1 * h * (1.0 - n1);
+        assert!(
+            (before - after).abs() < 1e-12 * after,
+            "{before} vs {after}"
+        );
     }
 
     /// Draws void `v` into a fresh isolated Castro IMZ (8.3 mm, 120 mm opening, h = 25 mm)
@@ -886,22 +948,30 @@ mod tests {
     #[test]
     fn growth_conserves_void_respects_the_base_angle_and_converges_with_cycle_size() {
         let v = 0.004; // m³, about 6 kg at dilated density
-        let (h, dn, r_open) = (0.025, 0.1, 0.06);
+        let (h, r_open) = (0.025, 0.06);
+        let eps = dilation(0.45 - 0.35, 0.45);
         let max_step = h / 65f64.to_radians().tan();
         // The engine's cycle is a sixteenth of the opening disk, ~2.5e-5 m³ here: 160
         // cycles. Then 4 and 16 times finer cycles.
         let runs: Vec<Imz> = [160, 640, 2560].iter().map(|&c| grow(v, c)).collect();
         for imz in &runs {
-            // All the void went into dilating the ring the disks gained (Δn = 0.1):
-            // Σ π h Δn (R_i² − R_i,0²) = v, the opening disk starting at the opening radius.
+            // All the void went into dilating the ring the disks gained (n0 0.35 → n1 0.45):
+            // Σ π h ε (R_i² − R_i,0²) = v with ε = Δn/(1 − n1), the opening disk starting at
+            // the opening radius.
             let dilated: f64 = imz
                 .geom
                 .radius
                 .iter()
                 .enumerate()
-                .map(|(i, &r)| PI * h * dn * (r * r - if i == 0 { r_open * r_open } else { 0.0 }))
+                .map(|(i, &r)| PI * h * eps * (r * r - if i == 0 { r_open * r_open } else { 0.0 }))
                 .sum();
             assert!((dilated - v).abs() < 1e-9 * v, "dilated {dilated} vs {v}");
+            // Out of the IMZ's top went nothing, and every disk passed up what it did not
+            // absorb: the void in disk i + 1 is the void out of disk i.
+            for w in imz.motion.windows(2) {
+                assert_eq!(w[0].dv_out, w[1].dv);
+            }
+            assert_eq!(imz.motion.last().unwrap().dv_out, 0.0);
             // r = 0 at the slope 45 + φ/2: no disk steps out further than h / tan 65°.
             let mut below = r_open;
             for &r in &imz.geom.radius {

@@ -11,18 +11,32 @@
 //! - Vertical, cone (R_i ≤ w_i): Δz = −3 Δv_i (1 − a_m/R_i) / (π R_i²).
 //! - Vertical, frustum (R_i > w_i, plug radius R_p = R_i − w_i):
 //!   plug Δz = −3 Δv_i / (π (R_i² + R_i R_p + R_p²)); annulus the same × (1 − (a_m − R_p)/w_i).
-//! - Radial, from disk expansion ΔR_i = R_i − R_i^old, largest at R_i^old and falling
-//!   linearly to zero at the axis and at the new radius. Its size is the thickness the
-//!   dilating ring gains, ΔR_i (n1 − n0)/(1 − n1). The summary prints the factor inverted,
-//!   (1 − n1)/(n1 − n0); taken literally that moves a marker of a new disk (R^old = 0) by
-//!   ~3.7 R across the axis, and diverges as the porosity jump vanishes, so we use the
-//!   volume-balance form (`tests::radial_move_is_the_ring_dilation`). The peak is capped at
-//!   R_i^old: the profile is linear from the axis, so a larger peak would carry interior
-//!   markers across the axis; a new disk (R^old = 0) has no interior to push and moves
-//!   nothing radially.
-//! - Transfer into a narrower disk below (R_{i−1} < R_i): Δa′ = −(1 − R_{i−1}/R_i) a_m and
-//!   Δz′ = −p (R_i² − R_{i−1}²)/R_{i−1}², p the depth reached below the disk base z_i (this
-//!   is the summary's Δz′ with its Δz cancelled).
+//! - Radial, from disk expansion ΔR_i = R_i − R_i^old. The ring R_i^old → R_i is stagnant
+//!   ground at n0 that dilates to n1 (`engine::imz`, the volume balance): it swells inward
+//!   by the void the disk absorbed, v_a = Δv_i − Δv_out (the void in through its base less
+//!   the void out through its top), over the flowable share f of the perimeter (rays with
+//!   no ring are not pushed), and squeezes the interior by as much. The squeeze follows the
+//!   vertical move's profile, streamtube by streamtube: the area inside radius a ≤ R_old
+//!   loses the share F(a) of v_a / (h f) that the profile passes inside a ([`radial`]);
+//!   beyond R_old the move falls linearly to zero at the new radius. To first order the
+//!   peak, at R_old, is ΔR_i (n1 − n0)/(1 − n1), the thickness the ring gains. The summary
+//!   prints the factor inverted, (1 − n1)/(n1 − n0); taken literally that moves a marker of
+//!   a new disk (R^old = 0) by ~3.7 R across the axis, and diverges as the porosity jump
+//!   vanishes, so we use the volume-balance form (`tests::radial_move_is_the_ring_dilation`).
+//!   Ground widened into for free (already dilated by a neighbour) absorbs no void and is
+//!   not pushed. A new disk (R^old = 0) has no interior to push; its ring dilates by the
+//!   vertical move alone.
+//! - The vertical move interpolates the void linearly from Δv_i at the disk's base to
+//!   Δv_out at its top, so it stretches the disk's material by v_a, the volume the radial
+//!   move took from the interior: the interior stays at n1 and the ring reaches n1. Void
+//!   that leaves the top disk (to the free surface, or into an air gap under uncaved
+//!   ground) moves the top disk's markers down by it, so the surface subsides by the void
+//!   that left and an air gap opens above the markers, not inside them.
+//! - Transfer into the disk below: a marker that crosses a disk's base keeps its
+//!   streamtube (`transfer`). Between two cones this is the summary's Δa′ = −(1 −
+//!   R_{i−1}/R_i) a_m and Δz′ = −p (R_i² − R_{i−1}²)/R_{i−1}², p the depth reached below the
+//!   disk base z_i (the summary's Δz′ with its Δz cancelled); between profiles of other
+//!   shapes it is the volume-conserving form of the same idea.
 //! - Shear strain in the shear annulus: Γ = |Δz| / min(R, w); shear work Γ σ_n with the
 //!   Janssen σ_n = ρ_s (1 − n1) g R / (2 tan φ) (summary §6.3).
 //!
@@ -328,22 +342,109 @@ pub fn vertical(dv: f64, r: f64, w: f64, a: f64) -> f64 {
     }
 }
 
-/// Inward radial displacement (negative) of a marker at radius `a` from a disk expansion
-/// `r_old → r_new`, with porosity jump `jump` and dilated porosity `n1`.
+/// Share F(a) of a disk's vertical flux ([`vertical`]) that passes inside radius `a`:
+/// ∫₀^a |Δz(a′)| 2π a′ da′ / Δv, 0 at the axis and 1 at the disk's radius `r`.
 #[inline]
-pub fn radial(r_old: f64, r_new: f64, jump: f64, n1: f64, a: f64) -> f64 {
+pub fn flux_inside(r: f64, w: f64, a: f64) -> f64 {
+    if !(r > 0.0) {
+        return 1.0;
+    }
+    let a = a.clamp(0.0, r);
+    // The cone is the frustum with no plug and a band as wide as the disk.
+    let (rp, w) = if r <= w { (0.0, r) } else { (r - w, w) };
+    let c = 3.0 / (r * r + r * rp + rp * rp);
+    if a <= rp {
+        c * a * a
+    } else {
+        let (a2, p2) = (a * a, rp * rp);
+        c * (p2 + (a2 - p2) - 2.0 * ((a2 * a - p2 * rp) / 3.0 - 0.5 * rp * (a2 - p2)) / w)
+    }
+}
+
+/// The radius at which the share `f` of a disk's vertical flux passes inside
+/// ([`flux_inside`] inverted): a square root in the plug, Newton's method kept inside a
+/// shrinking bracket in the shear annulus (F is increasing in a).
+fn radius_at_share(r: f64, w: f64, f: f64) -> f64 {
+    let f = f.clamp(0.0, 1.0);
+    let (rp, band) = if r <= w { (0.0, r) } else { (r - w, w) };
+    let c = 3.0 / (r * r + r * rp + rp * rp);
+    if f <= c * rp * rp {
+        return (f / c).sqrt();
+    }
+    let (mut lo, mut hi) = (rp, r);
+    let mut a = (f / c).sqrt().clamp(lo, hi);
+    for _ in 0..40 {
+        let g = flux_inside(r, w, a) - f;
+        if g.abs() <= 1e-13 {
+            break;
+        }
+        if g < 0.0 {
+            lo = a;
+        } else {
+            hi = a;
+        }
+        let slope = 2.0 * a * c * (1.0 - (a - rp) / band);
+        let next = a - g / slope;
+        a = if slope > 0.0 && next > lo && next < hi {
+            next
+        } else {
+            0.5 * (lo + hi)
+        };
+        if hi - lo <= 1e-12 * r {
+            break;
+        }
+    }
+    a
+}
+
+/// The transfer (Δa′, Δz′) of a marker at radius `a` in disk `here` that the update carried
+/// `depth` below the disk's base, into the disk `below`.
+///
+/// The marker keeps its streamtube: it moves to the radius a′ below at which the same share
+/// of the flux passes inside (F_below(a′) = F_here(a)), and the depth it reached is
+/// stretched by the ratio of the vertical speeds there, so the crossing material keeps its
+/// volume, streamtube by streamtube. Where the two disks' profiles have the same shape (two
+/// cones) this is the summary's transfer, Δa′ = −(1 − R_{i−1}/R_i) a and
+/// Δz′ = −p (R_i² − R_{i−1}²)/R_{i−1}²; with a plug of another relative width (frustums of
+/// other radii, w being the same), the summary's linear map sends more of the flux to the
+/// outer part of the narrower disk than its profile carries away, and material piles up
+/// there (by 20–80% near the base of an isolated IMZ). It also applies where the disk
+/// below is the wider one, which the summary leaves unmoved.
+fn transfer(here: &DiskMotion, below: &DiskMotion, a: f64, depth: f64) -> (f64, f64) {
+    let a = a.min(here.r);
+    let a_new = radius_at_share(below.r, below.w, flux_inside(here.r, here.w, a));
+    let speed = |m: &DiskMotion, a: f64| -vertical(1.0, m.r, m.w, a) / m.area_frac;
+    let (v_here, v_below) = (speed(here, a), speed(below, a_new));
+    // At the very rim both speeds vanish; their ratio tends to the ratio of the areas.
+    let stretch = if v_here > 1e-9 * speed(here, 0.0) {
+        v_below / v_here
+    } else {
+        (here.r * here.r * here.area_frac) / (below.r * below.r * below.area_frac)
+    };
+    (a_new - a, -depth * (stretch - 1.0))
+}
+
+/// Inward radial displacement (negative) of a marker at radius `a` in a disk of radius `r`
+/// and shear band `w` that expanded from `r_old` to `r_new`, its dilating ring taking
+/// `take` of plan area from the interior (the void the disk absorbed over its height and
+/// its flowable share of the perimeter; see the module docs).
+///
+/// Inside R_old the squeeze follows the vertical move's profile: the ring of radius a
+/// loses the share F(a) ([`flux_inside`]) of `take`, so u(a) = −take F(a) / (2π a), and
+/// each streamtube's squeeze is its vertical stretch. Between R_old and the new radius it
+/// falls linearly to zero. At most half a marker's radius is taken in one step (only a
+/// disk that more than doubles its radius in a step asks for more).
+#[inline]
+pub fn radial(r_old: f64, r_new: f64, r: f64, w: f64, take: f64, a: f64) -> f64 {
     let dr = r_new - r_old;
-    if dr <= 0.0 || a > r_new {
+    if dr <= 0.0 || a > r_new || !(take > 0.0) || !(r_old > 0.0) || !(a > 0.0) {
         return 0.0;
     }
-    // Capped at R_old: the interior cannot be pushed past the axis.
-    let peak = (dr * jump / (1.0 - n1)).min(r_old);
+    let at = |a: f64| (take * flux_inside(r, w, a) / (2.0 * std::f64::consts::PI * a)).min(0.5 * a);
     if a > r_old {
-        -peak * (1.0 - (a - r_old) / dr)
-    } else if r_old > 0.0 {
-        -peak * (a / r_old)
+        -at(r_old) * (1.0 - (a - r_old) / dr)
     } else {
-        0.0
+        -at(a)
     }
 }
 
@@ -383,22 +484,23 @@ impl MotionField<'_> {
                 continue;
             }
             // The void entering the disk's base is Δv_i and the void leaving through its top
-            // Δv_{i+1} = (1 − r) Δv_i; the share r dilates the disk. Interpolating Δv
-            // linearly over the disk's height spreads that dilation through the disk
-            // (markers move apart vertically), instead of moving the disk rigidly and
-            // leaving the void as a marker-free gap at its top. Both integrate to the same
-            // volumes through the disk's base and top. The void fills the flowable share
-            // A_f of the disk only, so the move is divided by it.
+            // Δv_out (Δv_{i+1} = (1 − r) Δv_i below another disk; at the top disk, what left
+            // the IMZ); the share absorbed dilates the disk. Interpolating Δv linearly over
+            // the disk's height spreads that dilation through the disk (markers move apart
+            // vertically), instead of moving the disk rigidly and leaving the void as a
+            // marker-free gap at its top. Both integrate to the same volumes through the
+            // disk's base and top. The void fills the flowable share A_f of the disk only,
+            // so the move is divided by it.
             let t_in = t - i as f64;
-            let dv_top = motion.get(i + 1).map_or(0.0, |u| u.dv);
-            let dv = m.dv + (dv_top - m.dv) * t_in;
+            let dv = m.dv + (m.dv_out - m.dv) * t_in;
             let dz = vertical(dv, m.r, m.w, a) / m.area_frac;
             let (ux, uy) = if a > 0.0 {
                 (ex / a, ey / a)
             } else {
                 (0.0, 0.0)
             };
-            let mut da = radial(m.r_old, m.r, m.jump, m.n1, a);
+            let take = (m.dv - m.dv_out) / (g.h * m.flow_frac);
+            let mut da = radial(m.r_old, m.r, m.r, m.w, take, a);
             // The inward move is the dilating ring pushing in along the marker's ray. In a
             // disk cut by a wall or uncaved ground (A_f < 1) there is no ring on a ray that
             // leaves the flowable ground before the new radius, so nothing pushes there
@@ -416,15 +518,13 @@ impl MotionField<'_> {
             st.dy += da * uy;
             st.dz += dz;
             total += dz.abs();
-            // Transfer into a narrower disk below (Δa′, Δz′).
+            // Transfer into the disk below (Δa′, Δz′), along the marker's streamtube.
             let z_base = g.z0 + i as f64 * g.h;
             if i > 0 && p[2] + dz < z_base {
-                let r_below = motion[i - 1].r;
-                if r_below < m.r && r_below > 0.0 {
-                    let a1 = (a + da).max(0.0);
-                    let da_t = -(1.0 - r_below / m.r) * a1;
+                let below = &motion[i - 1];
+                if below.r > 0.0 && (below.r != m.r || below.w != m.w) {
                     let depth = z_base - (p[2] + dz);
-                    let dz_t = -depth * (m.r * m.r - r_below * r_below) / (r_below * r_below);
+                    let (da_t, dz_t) = transfer(m, below, (a + da).max(0.0), depth);
                     let tr = (da_t * ux, da_t * uy, dz_t, dz.abs());
                     if n_tr < transfers.len() {
                         transfers[n_tr] = tr;
@@ -840,18 +940,64 @@ mod tests {
         }
     }
 
+    /// F(a) is the quadrature of the vertical profile, for the cone and the frustum.
+    #[test]
+    fn flux_inside_is_the_profile_integral() {
+        for &(r, w) in &[(1.0, 2.0), (3.0, 1.0), (5.0, 0.5)] {
+            let n = 20_000;
+            let mut vol = 0.0;
+            for k in 0..n {
+                let a = (k as f64 + 0.5) * r / n as f64;
+                vol -= vertical(1.0, r, w, a) * 2.0 * PI * a * (r / n as f64);
+                if (k + 1) % 2000 == 0 {
+                    let f = flux_inside(r, w, (k + 1) as f64 * r / n as f64);
+                    assert!(
+                        (f - vol).abs() < 1e-6,
+                        "r {r} w {w} a {}: {f} vs {vol}",
+                        (k + 1) as f64 * r / n as f64
+                    );
+                }
+            }
+        }
+        assert_eq!(flux_inside(2.0, 1.0, 0.0), 0.0);
+        assert_eq!(flux_inside(2.0, 1.0, 3.0), flux_inside(2.0, 1.0, 2.0));
+        // And its inverse, in the plug, the annulus and the cone.
+        for &(r, w) in &[(1.0, 2.0), (3.0, 1.0), (5.0, 0.5)] {
+            for k in 0..=20 {
+                let a = r * k as f64 / 20.0;
+                // At the rim F is flat (1 − F ∝ (r − a)²), so a is found to √ε there.
+                let back = radius_at_share(r, w, flux_inside(r, w, a));
+                assert!((back - a).abs() < 1e-6 * r, "r {r} w {w}: {a} → {back}");
+            }
+        }
+    }
+
     #[test]
     fn radial_move_is_the_ring_dilation() {
-        // Largest at R_old, zero at the axis and at R_new; size ΔR Δn/(1 − n1).
-        let (r0, r1, dn, n1) = (2.0, 2.5, 0.15, 0.45);
-        let peak = (r1 - r0) * dn / (1.0 - n1);
-        assert!((radial(r0, r1, dn, n1, r0) + peak).abs() < 1e-12);
-        assert_eq!(radial(r0, r1, dn, n1, 0.0), 0.0);
-        assert!(radial(r0, r1, dn, n1, r1).abs() < 1e-12);
-        // A new disk never sends a marker across the axis.
+        // The ring 2 → 2.01 m at n0 0.30 dilates to n1 0.45: it takes ε ΔA of plan area from
+        // the interior (ε = Δn/(1 − n1)). At R_old the interior has lost the profile's share
+        // F(R_old) of it, so the peak is the ring's thickness gain ΔR ε F(R_old) to first
+        // order in ΔR.
+        let (r0, r1, w, eps) = (2.0, 2.01, 0.5, 0.15 / 0.55);
+        let take = eps * PI * (r1 * r1 - r0 * r0);
+        let peak = -radial(r0, r1, r1, w, take, r0);
+        let f = flux_inside(r1, w, r0);
+        assert!(f > 0.99 && f < 1.0, "{f}");
+        assert!((peak / ((r1 - r0) * eps * f) - 1.0).abs() < 0.01, "{peak}");
+        // Streamtube by streamtube, the area inside a loses take × F(a): 2π a u(a).
+        for a in [0.1, 0.7, 1.5, 1.9] {
+            let u = radial(r0, r1, r1, w, take, a);
+            assert!((2.0 * PI * a * u + take * flux_inside(r1, w, a)).abs() < 1e-12);
+        }
+        // Zero at the axis and at R_new; nothing without absorbed void, nor in a new disk.
+        assert_eq!(radial(r0, r1, r1, w, take, 0.0), 0.0);
+        assert!(radial(r0, r1, r1, w, take, r1).abs() < 1e-12);
+        assert_eq!(radial(r0, r1, r1, w, 0.0, r0), 0.0);
         for k in 1..=10 {
             let a = 0.1 * k as f64;
-            assert!(a + radial(0.0, 1.0, 0.15, 0.45, a) >= 0.0);
+            assert_eq!(radial(0.0, 1.0, 1.0, w, 0.5, a), 0.0);
+            // A squeeze larger than the interior takes at most half a marker's radius.
+            assert!(a + radial(0.5, 1.0, 1.0, w, 10.0, a) >= 0.5 * a - 1e-12);
         }
     }
 

@@ -185,6 +185,28 @@ pub struct MassBalance {
     pub markers_drawn: u64,
     /// Per drawpoint: (scheduled, credited).
     pub per_drawpoint: Vec<(f64, f64)>,
+    /// Distribution of the mass-correction factor over the drawpoint-periods that drew
+    /// markers and are `ok`.
+    pub correction: CorrectionStats,
+}
+
+/// Distribution of the mass-correction factor c = target / marker tonnes (engine docs,
+/// mass balance). It corrects the discreteness of markers only, so its median is 1 to
+/// within the run's discreteness; `Engine` warns when the median leaves 1 ± 0.03.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct CorrectionStats {
+    /// Drawpoint-periods counted (status `ok`, marker tonnes > 0).
+    pub rows: u64,
+    /// Median of c.
+    pub median: f64,
+    /// 10th percentile of c.
+    pub p10: f64,
+    /// 90th percentile of c.
+    pub p90: f64,
+    /// Rows of the whole table (any status) whose c sits at the lower bound 0.1.
+    pub at_lower_bound: u64,
+    /// Rows of the whole table (any status) whose c sits at the upper bound 2.
+    pub at_upper_bound: u64,
 }
 
 /// Resolution actually used.

@@ -723,6 +723,11 @@ fn isolated_base_angle_and_iez_inside_imz() {
 // 4. Overlap: IN-T2 (two drawpoints at 700 mm, summary §4)
 // ---------------------------------------------------------------------------------------
 
+/// 270 kg a drawpoint a period for four periods: the stage at which both IMZs have long
+/// reached the top of the 3.3 m model. (The IMZ holds its material at n1, so it needs
+/// 1/(1 − n1) times the draw that the summary's printed radius update needed to reach the
+/// same size; at 150 kg a period the layers near the top had been drawn down mostly while
+/// the IMZs were still growing through them, CV 0.21–0.28.)
 #[test]
 fn in_t2_drawdown_is_uniform_above_imz_overlap() {
     let spacing = 0.7;
@@ -730,7 +735,7 @@ fn in_t2_drawdown_is_uniform_above_imz_overlap() {
         extent: [1.4, 1.0, 3.3],
         drawpoints: vec![(-0.5 * spacing, 0.0, 0.12), (0.5 * spacing, 0.0, 0.12)],
         periods: 4,
-        tonnes: 0.15,
+        tonnes: 0.27,
         ..UniformBox::castro_isolated()
     };
     let scene = b.scene();
@@ -811,7 +816,7 @@ fn in_t2_drawdown_is_uniform_above_imz_overlap() {
     // Below the overlap (lower half of the zone below it) drawdown is concentrated over
     // each drawpoint: stagnant ground between them gives CV ≥ 0.5 (measured ≥ 0.63).
     // Every layer now above the overlap height, holding no drawn marker, and starting at
-    // least h below the IMZ tops is drawn down uniformly: CV ≤ 0.15 (measured ≤ 0.115,
+    // least h below the IMZ tops is drawn down uniformly: CV ≤ 0.15 (measured ≤ 0.079,
     // falling to 0.02 near the top; the margin is for resolution).
     let low: Vec<f64> = layers
         .values()

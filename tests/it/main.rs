@@ -2,6 +2,7 @@
 
 #[cfg(feature = "analysis")]
 mod backanalysis;
+mod balance;
 mod calibration;
 mod cli;
 mod dataset;

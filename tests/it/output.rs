@@ -11,8 +11,8 @@ use arrow::array::{ArrayRef, AsArray, Float64Array, RecordBatch};
 use arrow::compute::concat_batches;
 use arrow::datatypes::{DataType, Float64Type, Int64Type, Schema};
 use caveflow::engine::result::{
-    AirGapTable, DrawnTable, Extraction, ImzTable, MarkerSnapshot, MarkerState, MassBalance,
-    ResolvedResolution, RunOutput, SurfaceTable,
+    AirGapTable, CorrectionStats, DrawnTable, Extraction, ImzTable, MarkerSnapshot, MarkerState,
+    MassBalance, ResolvedResolution, RunOutput, SurfaceTable,
 };
 use caveflow::model::demo::{self, DemoScale, BLOCK_HEIGHT, EXTRACTION_LEVEL_Z};
 use caveflow::model::{Scenario, Scene};
@@ -305,6 +305,14 @@ fn fake_run(scene: &Scene) -> RunOutput {
             markers_mobilised: 3,
             markers_drawn: 2,
             per_drawpoint: vec![(10_500.0, 10_500.0), (10_500.0, 10_499.5)],
+            correction: CorrectionStats {
+                rows: 2,
+                median: 0.99,
+                p10: 0.98,
+                p90: 1.0,
+                at_lower_bound: 0,
+                at_upper_bound: 1,
+            },
         },
         resolution: ResolvedResolution {
             layer_thickness: 3.8,
@@ -529,6 +537,16 @@ fn manifest_records_the_run() {
         run.balance.credited_tonnes
     );
     assert_eq!(m["mass_balance"]["per_drawpoint"][1][1], 10_499.5);
+    let c = &m["mass_balance"]["correction"];
+    assert_eq!(
+        (c["rows"].as_u64(), c["median"].as_f64()),
+        (Some(2), Some(0.99))
+    );
+    assert_eq!(
+        (c["p10"].as_f64(), c["p90"].as_f64()),
+        (Some(0.98), Some(1.0))
+    );
+    assert_eq!(c["at_upper_bound"], 1);
     assert_eq!(m["resolution"]["layer_thickness"], 3.8);
     assert_eq!(m["warnings"][0], run.warnings[0]);
     assert_eq!(m["scenario"]["dilution"]["grade"], "mo");

@@ -1,0 +1,345 @@
+//! Integration tests: mass-consistent kinematics (`engine::imz`, the volume balance). The
+//! IMZ's material is at n1, the stagnant ground at n0, and the marker field carries the
+//! mass that geometry implies, so the mass correction corrects discreteness only. Each test
+//! prints what it measured (`cargo test ... balance:: -- --nocapture`).
+
+use std::f64::consts::PI;
+
+use caveflow::engine::imz::dilation;
+use caveflow::engine::markers::Lattice;
+use caveflow::engine::{Engine, RunOutput};
+use caveflow::model::synthetic::UniformBox;
+use caveflow::model::{Scenario, Scene};
+
+use super::engine::{run, scenario};
+
+/// Median of the correction factor over the `ok` rows of `periods` that drew markers.
+fn median_correction(out: &RunOutput, periods: &[i64]) -> f64 {
+    let ex = &out.extraction;
+    let mut c: Vec<f64> = (0..ex.correction.len())
+        .filter(|&k| ex.status[k] == "ok" && ex.marker_tonnes[k] > 0.0)
+        .filter(|&k| periods.contains(&ex.period[k]))
+        .map(|k| ex.correction[k])
+        .collect();
+    assert!(!c.is_empty());
+    c.sort_unstable_by(f64::total_cmp);
+    c[c.len() / 2]
+}
+
+/// The median correction of the first and the second half of the periods lie within
+/// 1 ± `tol`: no bias, and no trend over the run.
+fn assert_unbiased(name: &str, scene: &Scene, out: &RunOutput, tol: f64) {
+    let ids = &scene.periods.id;
+    let (first, second) = ids.split_at(ids.len() / 2);
+    let (m1, m2) = (
+        median_correction(out, first),
+        median_correction(out, second),
+    );
+    let c = &out.balance.correction;
+    eprintln!(
+        "{name}: median correction {:.4} (p10 {:.4}, p90 {:.4}, {} rows); first half {m1:.4}, second half {m2:.4}; marker / scheduled tonnes {:.4}",
+        c.median,
+        c.p10,
+        c.p90,
+        c.rows,
+        out.balance.marker_tonnes / out.balance.scheduled_tonnes
+    );
+    for (half, m) in [("first", m1), ("second", m2)] {
+        assert!(
+            (m - 1.0).abs() <= tol,
+            "{name}: {half}-half median correction {m}"
+        );
+    }
+    assert!(!out.warnings.iter().any(|w| w.contains("median correction")));
+}
+
+/// Isolated draw at physical-model scale (summary §3.4, Simulation 2: 8.3 mm fragments, a
+/// 120 mm drawpoint, a 3.3 m high model), 10 kg a period for ten periods, at the automatic
+/// resolution: the markers drawn weigh what the schedule asks. Before the balance was made
+/// consistent this median was ~0.90.
+///
+/// Tolerance 0.02 (the issue's): a period draws ~10 kg, about 400 markers at the automatic
+/// 15 mm spacing (26 g each), so one period's marker tonnes scatter by a few percent about
+/// the schedule; the median over five periods is within 0.01 of 1 when unbiased.
+#[test]
+fn isolated_draw_draws_the_scheduled_marker_mass() {
+    let scene = UniformBox {
+        tonnes: 0.01,
+        ..UniformBox::castro_isolated()
+    }
+    .scene();
+    let out = run(&scene, &Scenario::default());
+    assert_unbiased("isolated draw", &scene, &out, 0.02);
+}
+
+/// IN-T2 (summary §4: two drawpoints 0.7 m apart), 25 kg a drawpoint a period for eight
+/// periods at the automatic resolution: the overlap (ground already dilated by the
+/// neighbour widens a disk for free, with no void and no radial push) keeps the balance.
+/// Tolerance as for isolated draw.
+#[test]
+fn in_t2_pair_draws_the_scheduled_marker_mass() {
+    let spacing = 0.7;
+    let scene = UniformBox {
+        extent: [1.4, 1.0, 3.3],
+        drawpoints: vec![(-0.5 * spacing, 0.0, 0.12), (0.5 * spacing, 0.0, 0.12)],
+        periods: 8,
+        tonnes: 0.025,
+        ..UniformBox::castro_isolated()
+    }
+    .scene();
+    let out = run(&scene, &Scenario::default());
+    assert_unbiased("IN-T2", &scene, &out, 0.02);
+}
+
+/// A closed volume: an isolated IMZ that never reaches the top of its box. Solids are
+/// conserved between the IMZ's bulk at n1, the stagnant ground at n0 and the solids drawn,
+/// with the IMZ taken from the geometry and the drawn solids from the markers (before any
+/// correction):
+///
+/// V_imz (1 − n1) ρ_s + (V_box − V_imz)(1 − n0) ρ_s + drawn = V_box (1 − n0) ρ_s.
+///
+/// V_imz leaves out the core of the opening disk (radius w/2), which is mobilised from the
+/// start, is never dilated by the balance and so stays at n0 (its π r² h Δn ρ_s of solids
+/// is 0.2% of what is drawn here). Tolerance 1.5% of the drawn solids: 100 kg are drawn
+/// as ~3000 markers of 33 g (12.5 mm spacing), and the lattice sites a disk engulfs differ
+/// from its area by the sites on its rim.
+///
+/// The marker field must also fill the IMZ at n1: the markers inside the final IMZ weigh
+/// V_imz (1 − n1) ρ_s to 3% (the lattice count of a curved boundary).
+#[test]
+fn a_closed_volume_conserves_solids_between_the_imz_the_stagnant_ground_and_the_draw() {
+    let b = UniformBox {
+        periods: 10,
+        tonnes: 0.01,
+        ..UniformBox::castro_isolated()
+    };
+    let scene = b.scene();
+    let (h, s) = (0.025, 0.0125);
+    let mut sc = scenario(h, s, 0.0004);
+    sc.outputs.marker_periods = vec![10];
+    let out = run(&scene, &sc);
+    let last = 10;
+    let t = &out.imz;
+    let disks: Vec<(f64, f64)> = (0..t.radius.len())
+        .filter(|&k| t.period[k] == last)
+        .map(|k| (t.z_base[k], t.radius[k]))
+        .collect();
+    let top = disks.iter().map(|d| d.0 + h).fold(0.0, f64::max);
+    assert!(
+        top < scene.blocks.z_max() - 0.5,
+        "the IMZ reached the top: {top}"
+    );
+    let r_open = 0.06;
+    let v_imz: f64 =
+        disks.iter().map(|d| PI * h * d.1 * d.1).sum::<f64>() - PI * h * r_open * r_open;
+    let v_box: f64 = b.extent.iter().product();
+    let rho = b.density;
+    let initial = v_box * (1.0 - b.n0) * rho;
+    let drawn = out.balance.marker_tonnes;
+    let now = v_imz * (1.0 - b.n1) * rho + (v_box - v_imz) * (1.0 - b.n0) * rho + drawn;
+    eprintln!(
+        "closed volume: IMZ {:.4} m³ up to {top:.2} m; drawn {:.2} kg of markers ({:.2} kg scheduled); solids now − initially {:+.3} kg ({:+.2}% of drawn)",
+        v_imz,
+        1000.0 * drawn,
+        1000.0 * out.balance.scheduled_tonnes,
+        1000.0 * (now - initial),
+        100.0 * (now - initial) / drawn
+    );
+
+    // The markers inside the IMZ at the end weigh the IMZ's bulk at n1.
+    let snap = out.snapshots.last().unwrap();
+    let inside: f64 = (0..snap.marker_id.len())
+        .filter(|&k| snap.drawpoint[k] == u32::MAX)
+        .filter(|&k| {
+            let i = (snap.z[k] / h) as usize;
+            disks
+                .get(i)
+                .is_some_and(|d| snap.x[k].hypot(snap.y[k]) <= d.1)
+        })
+        .map(|k| snap.mass[k])
+        .sum();
+    let at_n1 = (v_imz + PI * h * r_open * r_open) * (1.0 - b.n1) * rho;
+    eprintln!(
+        "markers in the IMZ {:.2} kg; its bulk at n1 holds {:.2} kg ({:+.2}%)",
+        1000.0 * inside,
+        1000.0 * at_n1,
+        100.0 * (inside / at_n1 - 1.0)
+    );
+    assert!((inside / at_n1 - 1.0).abs() <= 0.03);
+    assert!((now - initial).abs() <= 0.015 * drawn);
+}
+
+/// An isolated 120 mm drawpoint in a 1.2 m box of Castro material whose ground above
+/// `cap` never caves (`None`: the box's top is a free surface), 1 kg a period for 12
+/// periods.
+fn capped_box(height: f64, cap: Option<f64>) -> (UniformBox, Scene) {
+    let b = UniformBox {
+        extent: [1.2, 1.2, height],
+        periods: 12,
+        tonnes: 0.001,
+        ..UniformBox::castro_isolated()
+    };
+    let mut scene = b.scene();
+    if let Some(z) = cap {
+        let bm = &mut scene.blocks;
+        for k in 0..bm.len() {
+            if bm.z[k] > z {
+                bm.cave_period[k] = 1000;
+            }
+        }
+    }
+    (b, scene)
+}
+
+/// Resolution of the void tests: h = 25 mm, s = 12.5 mm, 0.2 kg increments.
+const S: f64 = 0.0125;
+
+/// The engine after every period of `scene`.
+fn draw_all<'a>(scene: &'a Scene, sc: &'a Scenario) -> Engine<'a> {
+    let mut e = Engine::new(scene, sc).unwrap();
+    for p in 0..scene.periods.len() {
+        e.run_period(p);
+    }
+    e
+}
+
+/// Void balance of the IMZ of [`draw_to_the_top`]: the void drawn (tonnes / ρ_s (1 − n1))
+/// is the void the rings absorbed (ε π h Σ (R_i² − R_i,0²)) plus what left through the top
+/// (vented to the free surface, or held as air under uncaved ground), to 1e-9: none is lost.
+fn assert_no_void_lost(b: &UniformBox, e: &Engine) {
+    let (imz, h, r_open) = (&e.imzs[0], 2.0 * S, 0.06);
+    let eps = dilation(b.n1 - b.n0, b.n1);
+    let absorbed: f64 = imz
+        .geom
+        .radius
+        .iter()
+        .enumerate()
+        .map(|(i, &r)| eps * PI * h * (r * r - if i == 0 { r_open * r_open } else { 0.0 }))
+        .sum();
+    let drawn_void = (b.periods as f64 * b.tonnes) / (b.density * (1.0 - b.n1));
+    eprintln!(
+        "void drawn {drawn_void:.5} m³ = absorbed {absorbed:.5} + vented {:.5} + air {:.5}",
+        imz.vented, imz.air
+    );
+    assert!((absorbed + imz.vented + imz.air - drawn_void).abs() <= 1e-9 * drawn_void);
+}
+
+/// The volume by which the sheet of markers that started in lattice layer `layer` sank: in
+/// plan cells of 2 s, the mean drop of those markers now in a cell times the cell's area,
+/// summed. The sheet is the top of the flowing ground (nothing flows above it), so this is
+/// the crater under the free surface or the air gap under a cap; cells holding none of its
+/// markers are ground the IMZ never reached (no drop).
+fn sheet_drop(b: &UniformBox, lat: &Lattice, e: &Engine, layer: usize) -> f64 {
+    let mk = &e.markers;
+    let cell = 2.0 * S;
+    let n = (b.extent[0] / cell).ceil() as usize;
+    let mut drop = vec![(0.0, 0usize); n * n];
+    for k in 0..mk.len() {
+        let id = mk.id[k] as usize;
+        if id / (lat.n[0] * lat.n[1]) != layer {
+            continue;
+        }
+        let i = ((mk.x[k] + 0.5 * b.extent[0]) / cell) as usize;
+        let j = ((mk.y[k] + 0.5 * b.extent[1]) / cell) as usize;
+        let c = &mut drop[i.min(n - 1) + n * j.min(n - 1)];
+        c.0 += lat.pos(id)[2] - mk.z[k];
+        c.1 += 1;
+    }
+    drop.iter()
+        .filter(|c| c.1 > 0)
+        .map(|c| c.0 / c.1 as f64 * cell * cell)
+        .sum()
+}
+
+/// A broken-through isolated IMZ: a 0.5 m column drawn to about four times its
+/// breakthrough draw, no rilling. Void that leaves the top disk moves the top disk's
+/// markers, so the crater the surface markers make is the void vented through the IMZ's
+/// top. Tolerance 5%: the sheet is read from ~500 markers in cells of 2 s, and a marker's
+/// drop is its centre's while the surface is its top (a dilated marker is ~0.1 s taller);
+/// with the top disk's markers held at the top (the void interpolated to zero there, as
+/// before) the crater came out 34% short.
+#[test]
+fn a_broken_through_imz_subsides_the_surface_by_the_void_that_left() {
+    let (b, scene) = capped_box(0.5, None);
+    let sc = scenario(2.0 * S, S, 0.0002);
+    let e = draw_all(&scene, &sc);
+    let imz = &e.imzs[0];
+    assert!(
+        imz.vented > 0.0 && imz.air == 0.0,
+        "the IMZ did not break through"
+    );
+    assert_no_void_lost(&b, &e);
+    let lat = Lattice::new(&scene.blocks, S);
+    let crater = sheet_drop(&b, &lat, &e, lat.n[2] - 1);
+    eprintln!(
+        "crater under the surface markers {crater:.5} m³; vented {:.5} m³ ({:+.1}%)",
+        imz.vented,
+        100.0 * (crater / imz.vented - 1.0)
+    );
+    assert!((crater / imz.vented - 1.0).abs() <= 0.05);
+}
+
+/// The same draw under ground that never caves above 0.5 m: the IMZ is held there, its
+/// void is an air gap, and the gap opens above the IMZ's markers: the sheet of markers
+/// that started just under the cap sank by the air held (tolerance as for the crater).
+#[test]
+fn under_uncaved_ground_the_air_gap_opens_above_the_markers() {
+    let (b, scene) = capped_box(1.0, Some(0.5));
+    let sc = scenario(2.0 * S, S, 0.0002);
+    let e = draw_all(&scene, &sc);
+    let imz = &e.imzs[0];
+    assert!(imz.blocked && imz.air > 0.0 && imz.vented == 0.0);
+    assert_no_void_lost(&b, &e);
+    // The last lattice layer whose centre lies under the cap.
+    let lat = Lattice::new(&scene.blocks, S);
+    let layer = (0..lat.n[2])
+        .rev()
+        .find(|&k| lat.pos(lat.id(0, 0, k))[2] < 0.5)
+        .unwrap();
+    let sheet_drawn = (0..e.drawn.m.len())
+        .filter(|&k| e.drawn.m.id[k] as usize / (lat.n[0] * lat.n[1]) == layer)
+        .count();
+    assert_eq!(sheet_drawn, 0, "the sheet under the cap was drawn");
+    let gap = sheet_drop(&b, &lat, &e, layer);
+    eprintln!(
+        "sheet under the cap sank by {gap:.5} m³; air held {:.5} m³ ({:+.1}%)",
+        imz.air,
+        100.0 * (gap / imz.air - 1.0)
+    );
+    assert!((gap / imz.air - 1.0).abs() <= 0.05);
+}
+
+/// Two drawpoints 0.5 m apart in Castro material, one drawing twice as much as the other,
+/// so the leader's IMZ spreads over ground its neighbour later draws: each drawpoint's
+/// marker tonnes stay within 3% of its schedule (the sum within 1%).
+#[test]
+fn unequal_draw_from_overlapping_imzs_keeps_each_drawpoints_balance() {
+    let mut scene = UniformBox {
+        extent: [1.4, 1.0, 3.3],
+        drawpoints: vec![(-0.25, 0.0, 0.12), (0.25, 0.0, 0.12)],
+        periods: 8,
+        tonnes: 0.03,
+        ..UniformBox::castro_isolated()
+    }
+    .scene();
+    for p in 0..8 {
+        scene.schedule.tonnes[2 * p] = 0.04;
+        scene.schedule.tonnes[2 * p + 1] = 0.02;
+    }
+    let out = run(&scene, &scenario(0.025, 0.0125, 0.001));
+    let ex = &out.extraction;
+    let ratio = |d: u32| {
+        let (m, s) = (0..ex.drawpoint.len())
+            .filter(|&k| ex.drawpoint[k] == d)
+            .fold((0.0, 0.0), |a, k| {
+                (a.0 + ex.marker_tonnes[k], a.1 + ex.scheduled_tonnes[k])
+            });
+        m / s
+    };
+    let (a, b) = (ratio(0), ratio(1));
+    eprintln!(
+        "unequal draw: marker / scheduled tonnes, leader {a:.4}, follower {b:.4}; sum {:.4}",
+        out.balance.marker_tonnes / out.balance.scheduled_tonnes
+    );
+    assert!((a - 1.0).abs() <= 0.03 && (b - 1.0).abs() <= 0.03);
+}
