@@ -186,6 +186,10 @@ fn run_keep_periods_and_cadence_setting() {
     let zero = run(&["--keep-periods", "0"]);
     assert_eq!(zero.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&zero.stderr).contains("--keep-periods must be at least 1"));
+    let negative = run(&["--checkpoint-minutes=-1"]);
+    assert_eq!(negative.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&negative.stderr)
+        .contains("--checkpoint-minutes must be a number of minutes, 0 or more (got -1)"));
     // The same rule for the other commands that take it.
     for cmd in [
         vec!["sweep", "--keep-periods", "0"],
@@ -240,9 +244,12 @@ fn killed_run_resumes_to_identical_outputs() {
     sc.outputs.marker_periods = vec![10, 30];
     caveflow::output::inputs::write_scene(tmp.path(), &b.scene(), &sc).unwrap();
     let scenario = tmp.path().join("scenario.toml");
+    // Checkpoints by wall time, the default trigger, at a few milliseconds: one at the end
+    // of nearly every period.
     let run = |out: &Path, resume: bool| {
         let mut c = caveflow();
         c.arg("run").arg(&scenario).arg("--out").arg(out);
+        c.args(["--checkpoint-minutes", "0.0001"]);
         if resume {
             c.arg("--resume");
         }
