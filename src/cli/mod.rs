@@ -407,8 +407,8 @@ fn run(a: RunArgs) -> Result<ExitCode> {
         started.elapsed().as_secs_f64(),
     );
     let b = out.balance.clone();
-    for w in &out.warnings {
-        eprintln!("warning: {w}");
+    for line in output::warnings::summary(&out.warnings) {
+        eprintln!("warning: {line}");
     }
     let name = a
         .input

@@ -247,15 +247,19 @@ impl<'a> Engine<'a> {
             resolution: res,
             ..Default::default()
         };
-        out.warnings = stability::assess(scene, scenario, &res).map_err(EngineError::Refused)?;
+        out.warnings = stability::assess(scene, scenario, &res)
+            .map_err(EngineError::Refused)?
+            .into_iter()
+            .map(|m| RunWarning::general(WarningRule::Stability, m))
+            .collect();
         out.extraction.grades = vec![Vec::new(); bm.grades.len()];
         out.extraction.lithology = vec![Vec::new(); bm.lithology_names.len()];
         if scenario.mechanisms.fragmentation {
             let weak = bm.tensile.iter().filter(|t| !(**t > 0.0)).count();
             if weak > 0 {
-                out.warnings.push(format!(
+                out.warnings.push(RunWarning::general(WarningRule::Input, format!(
                     "secondary fragmentation is on but {weak} blocks have no tensile strength or UCS; they do not break"
-                ));
+                )));
             }
         }
         Ok(Engine {
@@ -415,10 +419,13 @@ impl<'a> Engine<'a> {
                 let g = &self.imzs[d].geom;
                 let ok = bm.locate([g.x, g.y, g.z0 + 0.5 * g.h]).is_some_and(|b| bm.flowable(b, period));
                 if !ok {
-                    self.out.warnings.push(format!(
-                        "period {period}: drawpoint {} is scheduled but the ground above it is not caved; nothing drawn",
-                        scene.drawpoints.name[d]
-                    ));
+                    let name = &scene.drawpoints.name[d];
+                    self.out.warnings.push(RunWarning {
+                        rule: WarningRule::Uncaved,
+                        drawpoint: Some(name.clone()),
+                        amount: row[d],
+                        message: format!("period {period}: drawpoint {name} is scheduled but the ground above it is not caved; nothing drawn"),
+                    });
                 }
                 ok
             })
@@ -1205,21 +1212,31 @@ impl<'a> Engine<'a> {
         b.markers_drawn = dm.m.len() as u64;
         b.markers_mobilised = (dm.m.len() + self.markers.len()) as u64;
         b.correction = correction_stats(&self.out.extraction);
-        self.out.warnings.extend(correction_warning(&b.correction));
+        if let Some(m) = correction_warning(&b.correction) {
+            self.out
+                .warnings
+                .push(RunWarning::general(WarningRule::MassBalance, m));
+        }
         for (d, &c) in self.carry.iter().enumerate() {
             if c > 1e-6 * sched.total(d).max(1.0) {
-                self.out.warnings.push(format!(
-                    "drawpoint {} could not deliver {:.1} t of its schedule (IMZ blocked or nothing left to draw)",
-                    self.scene.drawpoints.name[d], c
-                ));
+                let name = &self.scene.drawpoints.name[d];
+                self.out.warnings.push(RunWarning {
+                    rule: WarningRule::Short,
+                    drawpoint: Some(name.clone()),
+                    amount: c,
+                    message: format!("drawpoint {name} could not deliver {c:.1} t of its schedule (IMZ blocked or nothing left to draw)"),
+                });
             }
         }
         for imz in &self.imzs {
             if imz.air > 0.0 {
-                self.out.warnings.push(format!(
-                    "drawpoint {}: IMZ held under uncaved ground; {:.3e} m3 of void is still an air gap at the end of the run",
-                    self.scene.drawpoints.name[imz.id], imz.air
-                ));
+                let name = &self.scene.drawpoints.name[imz.id];
+                self.out.warnings.push(RunWarning {
+                    rule: WarningRule::AirGap,
+                    drawpoint: Some(name.clone()),
+                    amount: imz.air,
+                    message: format!("drawpoint {name}: IMZ held under uncaved ground; {:.3e} m3 of void is still an air gap at the end of the run", imz.air),
+                });
             }
         }
         self.out

@@ -168,6 +168,53 @@ pub struct MarkerSnapshot {
     pub drawn_period: Vec<i64>,
 }
 
+/// What a run warning is about (the rule it reports).
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, serde::Serialize, serde::Deserialize,
+)]
+pub enum WarningRule {
+    /// The method is degraded for the scene (`engine::stability`), one per rule.
+    Stability,
+    /// A mechanism is on but some of its inputs are missing.
+    Input,
+    /// A drawpoint is scheduled in a period while the ground above it has not caved:
+    /// nothing is drawn (amount: the tonnes scheduled).
+    Uncaved,
+    /// A drawpoint could not deliver all of its schedule (amount: the tonnes it still
+    /// owes at the end).
+    Short,
+    /// A drawpoint's IMZ ends the run held under uncaved ground (amount: the air gap, m³).
+    AirGap,
+    /// The median mass correction leaves 1 ± 0.03: a bias, not discreteness.
+    MassBalance,
+}
+
+/// A warning of a run: its rule, the drawpoint it concerns, how much it concerns, and
+/// the sentence that says it.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct RunWarning {
+    /// The rule.
+    pub rule: WarningRule,
+    /// The drawpoint, where there is one.
+    pub drawpoint: Option<String>,
+    /// Its size, in the rule's unit (see [`WarningRule`]); 0 where it has none.
+    pub amount: f64,
+    /// The warning in words.
+    pub message: String,
+}
+
+impl RunWarning {
+    /// A warning of `rule` that concerns no drawpoint in particular.
+    pub fn general(rule: WarningRule, message: String) -> RunWarning {
+        RunWarning {
+            rule,
+            drawpoint: None,
+            amount: 0.0,
+            message,
+        }
+    }
+}
+
 /// Mass balance of a run.
 #[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct MassBalance {
@@ -265,8 +312,8 @@ pub struct RunOutput {
     pub air_gap: AirGapTable,
     /// Free surface at the chosen periods.
     pub surface: SurfaceTable,
-    /// Warnings (degraded validity, blocked drawpoints, ...).
-    pub warnings: Vec<String>,
+    /// Warnings (degraded validity, blocked drawpoints, ...), in the order raised.
+    pub warnings: Vec<RunWarning>,
     /// Mass balance.
     pub balance: MassBalance,
     /// Resolution used.

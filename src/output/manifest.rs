@@ -63,7 +63,7 @@ impl Manifest {
             threads,
             wall_time_s,
             mass_balance: run.balance.clone(),
-            warnings: run.warnings.clone(),
+            warnings: run.warnings.iter().map(|w| w.message.clone()).collect(),
         }
     }
 

@@ -30,6 +30,7 @@ pub mod parquet;
 pub mod records;
 pub mod run;
 pub mod stress;
+pub mod warnings;
 
 pub use self::manifest::Manifest;
 pub use self::parquet::{write_atomic, write_batch, write_parquet, AtomicFile};

@@ -7,7 +7,7 @@
 use std::collections::{BTreeMap, HashMap, HashSet};
 
 use caveflow::engine::markers::Lattice;
-use caveflow::engine::{Engine, EngineError, MarkerState, RunOutput};
+use caveflow::engine::{Engine, EngineError, MarkerState, RunOutput, WarningRule};
 use caveflow::model::synthetic::UniformBox;
 use caveflow::model::{Scenario, Scene};
 
@@ -158,20 +158,20 @@ fn conservation_of_tonnes_and_markers() {
     let (sched3, credited3) = out.balance.per_drawpoint[2];
     assert_eq!(credited3, 0.0);
     assert!((ex.shortfall_tonnes[*dp3.last().unwrap()] - sched3).abs() <= 1e-12);
-    assert!(
+    let of = |rule: WarningRule| {
         out.warnings
             .iter()
-            .any(|w| w.contains("DP03") && w.contains("not caved")),
-        "{:?}",
-        out.warnings
-    );
-    assert!(
-        out.warnings
-            .iter()
-            .any(|w| w.contains("DP03") && w.contains("could not deliver")),
-        "{:?}",
-        out.warnings
-    );
+            .filter(|w| w.rule == rule && w.drawpoint.as_deref() == Some("DP03"))
+            .collect::<Vec<_>>()
+    };
+    // One per period in which DP03 is scheduled under uncaved ground, with the tonnes.
+    let uncaved = of(WarningRule::Uncaved);
+    assert_eq!(uncaved.len(), scene.periods.len(), "{:?}", out.warnings);
+    assert!(uncaved[0].message.contains("not caved") && uncaved[0].amount > 0.0);
+    let short = of(WarningRule::Short);
+    assert_eq!(short.len(), 1, "{:?}", out.warnings);
+    assert!(short[0].message.contains("could not deliver"));
+    assert!((short[0].amount - sched3).abs() <= 1e-9);
     // The scene does what it says: DP01 and DP02 reach the cave back before it caves (an
     // air gap is reported by period 4), and the gap closes once the back caves at period 5,
     // so the run ends with no air-gap warning.
@@ -185,7 +185,7 @@ fn conservation_of_tonnes_and_markers() {
     eprintln!("air gap under the cave back by period 4: {air_by_4:.2e} m³, at the end {air_at_end:.2e} m³");
     assert!(air_by_4 > 0.0);
     assert_eq!(air_at_end, 0.0);
-    assert!(!out.warnings.iter().any(|w| w.contains("air gap")));
+    assert!(!out.warnings.iter().any(|w| w.rule == WarningRule::AirGap));
     // Run totals: credited + what is still owed = scheduled.
     let b = &out.balance;
     assert!((b.credited_tonnes + b.final_shortfall_tonnes - b.scheduled_tonnes).abs() <= 1e-9);

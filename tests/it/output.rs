@@ -12,7 +12,7 @@ use arrow::compute::concat_batches;
 use arrow::datatypes::{DataType, Float64Type, Int64Type, Schema};
 use caveflow::engine::result::{
     AirGapTable, CorrectionStats, DrawnTable, Extraction, ImzTable, MarkerSnapshot, MarkerState,
-    MassBalance, ResolvedResolution, RunOutput, SurfaceTable,
+    MassBalance, ResolvedResolution, RunOutput, RunWarning, SurfaceTable, WarningRule,
 };
 use caveflow::model::demo::{self, DemoScale, BLOCK_HEIGHT, EXTRACTION_LEVEL_Z};
 use caveflow::model::{Scenario, Scene};
@@ -296,7 +296,12 @@ fn fake_run(scene: &Scene) -> RunOutput {
             y: vec![5_000.95, 5_000.95],
             z: vec![2_510.0, 2_505.5],
         },
-        warnings: vec!["drawpoint D01-02 short in period 1".into()],
+        warnings: vec![RunWarning {
+            rule: WarningRule::Short,
+            drawpoint: Some("D01-02".into()),
+            amount: 0.5,
+            message: "drawpoint D01-02 short in period 1".into(),
+        }],
         balance: MassBalance {
             scheduled_tonnes: 21_000.0,
             credited_tonnes: 20_999.5,
@@ -548,7 +553,7 @@ fn manifest_records_the_run() {
     );
     assert_eq!(c["at_upper_bound"], 1);
     assert_eq!(m["resolution"]["layer_thickness"], 3.8);
-    assert_eq!(m["warnings"][0], run.warnings[0]);
+    assert_eq!(m["warnings"][0], run.warnings[0].message);
     assert_eq!(m["scenario"]["dilution"]["grade"], "mo");
     assert_eq!(m["scenario"]["seed"], 7);
     let created = m["created_utc"].as_str().unwrap();

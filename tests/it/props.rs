@@ -27,7 +27,7 @@
 use std::collections::{HashMap, HashSet};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
-use caveflow::engine::{Engine, MarkerState, RunOutput};
+use caveflow::engine::{Engine, MarkerState, RunOutput, WarningRule};
 use caveflow::model::synthetic::UniformBox;
 use caveflow::model::{Scenario, Scene};
 use proptest::prelude::*;
@@ -360,8 +360,12 @@ fn random_valid_scenes_run_finite_and_conserve() {
         let engine = Engine::new(&scene, &sc).map_err(|e| TestCaseError::fail(e.to_string()))?;
         let out = engine.run(&mut |_, _| {});
         // Valid by construction: no stability warning.
-        if let Some(w) = out.warnings.iter().find(|w| w.starts_with("stability")) {
-            return Err(TestCaseError::fail(w.clone()));
+        if let Some(w) = out
+            .warnings
+            .iter()
+            .find(|w| w.rule == WarningRule::Stability)
+        {
+            return Err(TestCaseError::fail(w.message.clone()));
         }
         let bm = &scene.blocks;
         let s3 = sc.resolution.marker_spacing.unwrap_or(0.05).powi(3);

@@ -26,7 +26,7 @@
 use std::path::Path;
 
 use caveflow::engine::stability::{classify, worst, Conditions, Validity, FRICTION_REFUSED};
-use caveflow::engine::{Engine, EngineError, RunOutput};
+use caveflow::engine::{Engine, EngineError, RunOutput, WarningRule};
 use caveflow::model::synthetic::UniformBox;
 use caveflow::model::{Scenario, Scene};
 use caveflow::output::charts::{stability_chart, RegionBand};
@@ -236,14 +236,18 @@ fn stability_regions_hold_against_tiny_runs_and_are_charted() {
                 }
                 // A valid scene runs without a stability warning.
                 assert!(
-                    !out.warnings.iter().any(|w| w.starts_with("stability")),
+                    !out.warnings
+                        .iter()
+                        .any(|w| w.rule == WarningRule::Stability),
                     "{:?}",
                     out.warnings
                 );
             } else {
                 // Anything not valid is said in the run's warnings.
                 assert!(
-                    out.warnings.iter().any(|w| w.starts_with("stability")),
+                    out.warnings
+                        .iter()
+                        .any(|w| w.rule == WarningRule::Stability),
                     "{} = {v}: {verdict:?} but no warning in {:?}",
                     s.label,
                     out.warnings
@@ -321,7 +325,8 @@ fn refused_scenes_stop_with_the_rule_and_degraded_ones_warn() {
     assert!(
         out.warnings
             .iter()
-            .any(|w| w.contains("[frag-to-width] degraded") && w.contains("over-predicts")),
+            .any(|w| w.message.contains("[frag-to-width] degraded")
+                && w.message.contains("over-predicts")),
         "{:?}",
         out.warnings
     );
