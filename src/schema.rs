@@ -305,7 +305,8 @@ pub const EXTRACTION: TableSpec = TableSpec {
         f("air_gap", F64, "m3", "Void held under uncaved ground above this drawpoint's IMZ (air gap), released when the ground above caves; void reaching the top of the model is surface subsidence, not air", true, &[]),
         f("rilled_share", F64, "-", "Mass share of the drawn material that rilled on the free surface (null when no marker was drawn)", false, &[]),
         f("rill_distance", F64, "m", "Mass-weighted mean horizontal distance the rilled material rilled (null when none rilled)", false, &[]),
-        f("status", Str, "-", "ok | short (could not deliver the schedule) | idle", true, &[]),
+        f("status", Str, "-", "ok | short (could not deliver the schedule) | idle (nothing scheduled)", true, &[]),
+        f("short_reason", Str, "-", "Why a short row could not deliver: uncaved (the ground above the drawpoint has not caved) | blocked (its IMZ is held under uncaved ground and has drained into the air gap) | exhausted (its column has run out); empty otherwise", true, &[]),
     ],
     extra: Some(ExtraColumns {
         pattern: "<grade name> | lith_<lithology>",

@@ -20,7 +20,7 @@ use super::{Engine, EngineError, RunOutput};
 use crate::model::{Scenario, Scene};
 
 /// Format version: bump when the state's layout changes.
-const VERSION: u32 = 1;
+const VERSION: u32 = 2;
 
 #[derive(Serialize, Deserialize)]
 struct State {
@@ -123,8 +123,19 @@ impl<'a> Engine<'a> {
         e.carry = s.carry;
         e.cum = s.cum;
         e.out = s.out;
-        // The marker bins are derived state.
+        // The marker bins, the streams and the scheduled tonnes so far are derived state.
         e.bins.sync(&e.markers);
+        let d = &e.drawn;
+        if d.tau.len() != d.m.len() {
+            return Err(bad("does not fit this scene".into()));
+        }
+        for k in 0..d.m.len() {
+            e.streams[d.drawpoint[k] as usize].push(d.tau[k], d.m.mass[k], k);
+        }
+        for p in 0..s.next {
+            let row = scene.schedule.period(p);
+            e.sched_cum.iter_mut().zip(row).for_each(|(c, t)| *c += t);
+        }
         Ok((e, s.next))
     }
 }

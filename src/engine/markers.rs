@@ -213,6 +213,10 @@ pub struct DrawnMarkers {
     pub drawpoint: Vec<u32>,
     /// Period number in which each was drawn.
     pub period: Vec<i64>,
+    /// Draw time τ of each: its drawpoint's cumulative scheduled tonnes at the middle of the
+    /// step that drew it, t (`engine::crediting`).
+    #[serde(default)]
+    pub tau: Vec<f64>,
 }
 
 impl Markers {

@@ -4,6 +4,7 @@
 //! - [`markers`]: the marker lattice and marker motion (summary §3.3), superposition of
 //!   overlapping IMZs (summary §4.2).
 //! - [`cadence`]: multi-rate marker updates: a slow marker steps once every 2^L updates.
+//! - [`crediting`]: the tonnes credited per period and the drawn stream they are read from.
 //! - [`resolution`]: the automatic choice of h, marker spacing and draw increment.
 //! - [`fragmentation`]: primary fragment sizes and secondary fragmentation (summary §6.3).
 //! - [`fines`]: fines migration by percolation (summary §7.3).
@@ -27,18 +28,18 @@
 //! The kinematics conserve mass (`imz`, the volume balance): the IMZ's material is at n1,
 //! the stagnant ground at n0, and the marker mass drawn equals the tonnes scheduled up to the
 //! discreteness of markers (heavily overlapping IMZs, closer than about three openings,
-//! still lose a few percent in superposition; README, validation). Per drawpoint and period the credited
-//! tonnes are the marker tonnes times a correction factor c = target / marker tonnes
-//! bounded to [0.1, 2] (MassFlow's bounds), where target = scheduled + the shortfall carried
-//! from earlier periods. What the bounded factor cannot credit is reported as
-//! `shortfall_tonnes` and carried forward, so over a run the credited tonnes equal the
-//! schedule up to the final carry, which is reported. The distribution of c (median, p10,
-//! p90, rows at a bound) goes into the run's mass balance (`manifest.json`), and a run
-//! whose median c leaves 1 ± [`CORRECTION_MEDIAN_TOLERANCE`] warns: that is a bias of the
-//! kinematics, not discreteness.
+//! still lose a few percent in superposition; README, validation). Each period is credited
+//! its schedule while its drawpoint is flowing, and its grades are read from the drawpoint's
+//! stream of drawn markers over the period's scheduled interval ([`crediting`]); a drawpoint
+//! that really could not deliver is `short`, with the reason. The distribution of credited
+//! over marker tonnes (per drawpoint-period, and per drawpoint over the run) goes into the
+//! run's mass balance (`manifest.json`), and a run whose drawpoints' median ratio leaves
+//! 1 ± [`CORRECTION_MEDIAN_TOLERANCE`] warns: that is a bias of the kinematics, not
+//! discreteness.
 
 pub mod cadence;
 pub mod checkpoint;
+pub mod crediting;
 pub mod fines;
 pub mod fragmentation;
 pub mod imz;
@@ -53,56 +54,72 @@ use rayon::prelude::*;
 
 use crate::model::{Scenario, Scene};
 use cadence::Cadence;
+use crediting::Tally;
 use fragmentation::SizeDist;
 use imz::{DiskMotion, Ground, Imz, ImzGeom, ImzGrid, ImzParams, Mobilised};
 use markers::{Bins, DrawnMarkers, Lattice, Markers, MotionField};
 pub use result::*;
 
-/// Bounds of the mass-correction factor (MassFlow's).
+/// MassFlow's bounds of its mass-correction factor: the rows beyond them are counted.
 pub const CORRECTION_BOUNDS: (f64, f64) = (0.1, 2.0);
 
-/// How far the median correction factor may sit from 1 before a run warns: the
-/// correction is for the discreteness of markers, which averages out over a run.
+/// How far the median over the drawpoints of credited over marker tonnes may sit from 1
+/// before a run warns: the markers' discreteness averages out over a drawpoint's run.
 pub const CORRECTION_MEDIAN_TOLERANCE: f64 = 0.03;
 
-/// The warning of a run whose median correction leaves 1 ± [`CORRECTION_MEDIAN_TOLERANCE`].
+/// The warning of a run whose drawpoints' median ratio of credited over marker tonnes
+/// leaves 1 ± [`CORRECTION_MEDIAN_TOLERANCE`].
 pub fn correction_warning(c: &CorrectionStats) -> Option<String> {
-    (c.rows > 0 && (c.median - 1.0).abs() > CORRECTION_MEDIAN_TOLERANCE).then(|| format!(
-        "mass balance: the median correction factor is {:.3} (p10 {:.3}, p90 {:.3}, over {} drawpoint-periods), beyond 1 ± {CORRECTION_MEDIAN_TOLERANCE}: the markers drawn carry a bias, not only their discreteness; see manifest.json mass_balance.correction",
-        c.median, c.p10, c.p90, c.rows
+    (c.rows > 0 && (c.drawpoint_median - 1.0).abs() > CORRECTION_MEDIAN_TOLERANCE).then(|| format!(
+        "mass balance: the drawpoints' median ratio of credited over marker tonnes is {:.3}, beyond 1 ± {CORRECTION_MEDIAN_TOLERANCE}: the markers drawn carry a bias, not only their discreteness (per drawpoint-period: median {:.3}, p10 {:.3}, p90 {:.3} over {} rows); see manifest.json mass_balance.correction",
+        c.drawpoint_median, c.median, c.p10, c.p90, c.rows
     ))
 }
 
+/// Nearest-rank quantile `p` of sorted values (NaN if none).
+fn quantile(sorted: &[f64], p: f64) -> f64 {
+    if sorted.is_empty() {
+        return f64::NAN;
+    }
+    sorted[((p * sorted.len() as f64).ceil() as usize).clamp(1, sorted.len()) - 1]
+}
+
 /// The distribution of the correction factor in an extraction table: quantiles over the
-/// `ok` rows that drew markers, bound hits over every row.
+/// `ok` rows that drew markers, the rows beyond MassFlow's bounds over every row with
+/// markers, and the median over the drawpoints of their ratio over the run.
 pub fn correction_stats(ex: &Extraction) -> CorrectionStats {
+    let ok = |k: usize| ex.status[k] == "ok" && ex.marker_tonnes[k] > 0.0;
     let mut c: Vec<f64> = (0..ex.correction.len())
-        .filter(|&k| ex.status[k] == "ok" && ex.marker_tonnes[k] > 0.0)
+        .filter(|&k| ok(k))
         .map(|k| ex.correction[k])
         .collect();
     c.sort_unstable_by(f64::total_cmp);
-    // Nearest-rank quantile.
-    let q = |p: f64| {
-        if c.is_empty() {
-            f64::NAN
-        } else {
-            c[((p * c.len() as f64).ceil() as usize).clamp(1, c.len()) - 1]
-        }
-    };
-    let bound = |b: f64| {
-        ex.correction
-            .iter()
-            .zip(&ex.marker_tonnes)
-            .filter(|&(&x, &m)| m > 0.0 && x == b)
+    // Per drawpoint over the run: every ok row, those that drew no marker too.
+    let mut per_dp: std::collections::BTreeMap<u32, (f64, f64)> = Default::default();
+    for k in (0..ex.correction.len()).filter(|&k| ex.status[k] == "ok") {
+        let e = per_dp.entry(ex.drawpoint[k]).or_default();
+        e.0 += ex.tonnes[k];
+        e.1 += ex.marker_tonnes[k];
+    }
+    let mut ratios: Vec<f64> = per_dp
+        .values()
+        .filter(|(_, m)| *m > 0.0)
+        .map(|(t, m)| t / m)
+        .collect();
+    ratios.sort_unstable_by(f64::total_cmp);
+    let beyond = |outside: fn(f64) -> bool| {
+        (0..ex.correction.len())
+            .filter(|&k| ex.marker_tonnes[k] > 0.0 && outside(ex.correction[k]))
             .count() as u64
     };
     CorrectionStats {
         rows: c.len() as u64,
-        median: q(0.5),
-        p10: q(0.1),
-        p90: q(0.9),
-        at_lower_bound: bound(CORRECTION_BOUNDS.0),
-        at_upper_bound: bound(CORRECTION_BOUNDS.1),
+        median: quantile(&c, 0.5),
+        p10: quantile(&c, 0.1),
+        p90: quantile(&c, 0.9),
+        at_lower_bound: beyond(|x| x <= CORRECTION_BOUNDS.0),
+        at_upper_bound: beyond(|x| x >= CORRECTION_BOUNDS.1),
+        drawpoint_median: quantile(&ratios, 0.5),
     }
 }
 
@@ -130,29 +147,6 @@ pub enum EngineError {
 /// Largest lattice the engine accepts (one byte of state per site).
 pub const MAX_SITES: usize = 2_000_000_000;
 
-/// Per-drawpoint accumulators for the period being drawn.
-#[derive(Debug, Clone, Default)]
-struct Tally {
-    mass: f64,
-    count: i64,
-    grade: Vec<f64>,
-    lith: Vec<f64>,
-    origin_z: f64,
-    frag: f64,
-    fines: f64,
-    waste: f64,
-    rilled: f64,
-    rill_dist: f64,
-    /// Size distribution and mass of each marker drawn.
-    sizes: Vec<(SizeDist, f64)>,
-    /// Σ fines mass × origin elevation.
-    fines_z: f64,
-    /// Fines mass that is waste.
-    fines_waste: f64,
-    /// Σ mass × accumulated percolation distance.
-    percolated: f64,
-}
-
 /// The engine's state between steps. Create with [`Engine::new`], drive with
 /// [`Engine::run`].
 pub struct Engine<'a> {
@@ -174,8 +168,18 @@ pub struct Engine<'a> {
     pub drawn: DrawnMarkers,
     carry: Vec<f64>,
     cum: Vec<f64>,
+    /// Per drawpoint, its cumulative scheduled tonnes before the period being drawn, t.
+    sched_cum: Vec<f64>,
+    /// Index of the period being drawn, and how far through it the step that is moving
+    /// markers is (½ step in: the draw time of what it draws, `engine::crediting`).
+    at: (usize, f64),
+    /// Per drawpoint, its drawn markers as a stream (derived from `drawn`).
+    streams: Vec<crediting::Stream>,
     tally: Vec<Tally>,
     hod_density_area: Vec<f64>,
+    /// Per drawpoint, the block just above it (for the mass of its markers before any is
+    /// drawn).
+    drawpoint_block: Vec<usize>,
     waste: Vec<bool>,
     fines_frac: Vec<f64>,
     extent: ([f64; 2], [f64; 2]),
@@ -238,11 +242,7 @@ impl<'a> Engine<'a> {
             })
             .collect();
         let n_dp = dp.len();
-        let tally = Tally {
-            grade: vec![0.0; bm.grades.len()],
-            lith: vec![0.0; bm.lithology_names.len()],
-            ..Default::default()
-        };
+        let tally = Tally::new(bm.grades.len(), bm.lithology_names.len());
         let mut out = RunOutput {
             resolution: res,
             ..Default::default()
@@ -276,8 +276,18 @@ impl<'a> Engine<'a> {
             drawn: DrawnMarkers::default(),
             carry: vec![0.0; n_dp],
             cum: vec![0.0; n_dp],
+            sched_cum: vec![0.0; n_dp],
+            at: (0, 0.0),
+            streams: vec![crediting::Stream::default(); n_dp],
             tally: vec![tally; n_dp],
             hod_density_area: tributary(scene),
+            drawpoint_block: (0..n_dp)
+                .map(|d| {
+                    let dp = &scene.drawpoints;
+                    bm.locate([dp.x[d], dp.y[d], dp.z[d] + 0.5 * res.layer_thickness])
+                        .unwrap_or(0)
+                })
+                .collect(),
             waste: waste_blocks(scene, scenario),
             fines_frac: fines_fractions(scene, scenario.outputs.fines_cutoff),
             extent: (
@@ -433,17 +443,23 @@ impl<'a> Engine<'a> {
         let rill = self.scenario.mechanisms.rilling;
         let every = self.scenario.rilling.every_steps as u64;
         if max_t > 0.0 && !drawing.is_empty() {
-            for _ in 0..steps {
+            for j in 0..steps {
+                self.at = (p, (j as f64 + 0.5) / steps as f64);
                 self.step(period, row, steps, &drawing);
                 if rill && every > 0 && self.steps_done % every == 0 {
                     self.rill(period);
                 }
             }
         }
+        // What is drawn from here on (catching lagging markers up) is drawn at the end.
+        self.at = (p, 1.0);
         if rill {
             self.rill(period);
         }
-        self.close_period(p, period);
+        self.close_period(p, period, &drawing);
+        for d in 0..row.len() {
+            self.sched_cum[d] += row[d];
+        }
     }
 
     fn step(&mut self, period: i64, row: &[f64], steps: usize, drawing: &[usize]) {
@@ -607,9 +623,14 @@ impl<'a> Engine<'a> {
         drawn.sort_unstable_by(|a, b| b.0.cmp(&a.0));
         for (k, d) in drawn {
             self.credit(k, d as usize);
+            let (p, frac) = self.at;
+            let d = d as usize;
+            let tau = self.sched_cum[d] + frac * self.scene.schedule.period(p)[d];
+            self.streams[d].push(tau, self.markers.mass[k], self.drawn.m.len());
+            self.drawn.tau.push(tau);
             self.markers.take_into(k, &mut self.drawn.m);
             self.bins.swap_remove(k);
-            self.drawn.drawpoint.push(d);
+            self.drawn.drawpoint.push(d as u32);
             self.drawn.period.push(period);
         }
     }
@@ -843,10 +864,16 @@ impl<'a> Engine<'a> {
 
     /// Adds marker row `k` to drawpoint `d`'s tally for the period.
     fn credit(&mut self, k: usize, d: usize) {
+        let mut t = std::mem::take(&mut self.tally[d]);
+        self.contribute(&self.markers, k, &mut t);
+        self.tally[d] = t;
+    }
+
+    /// Adds row `k` of `mk` (moving or drawn markers) to a tally.
+    fn contribute(&self, mk: &Markers, k: usize, t: &mut Tally) {
         let bm = &self.scene.blocks;
-        let b = self.markers.block[k] as usize;
-        let m = self.markers.mass[k];
-        let mk = &self.markers;
+        let b = mk.block[k] as usize;
+        let m = mk.mass[k];
         // The marker's size distribution and fines share: its own (primary size, attrited
         // fraction) when markers are sized, else its block's primary distribution.
         let (dist, fines) = if self.sized() {
@@ -859,15 +886,14 @@ impl<'a> Engine<'a> {
         } else {
             (SizeDist::of_block(bm, b), self.fines_frac[b])
         };
-        let t = &mut self.tally[d];
         t.mass += m;
         t.count += 1;
         for (g, col) in bm.grades.iter().enumerate() {
             t.grade[g] += m * col[b];
         }
         t.lith[bm.lithology[b] as usize] += m;
-        t.origin_z += m * self.lattice.pos(self.markers.id[k] as usize)[2];
-        t.frag += m * self.markers.frag[k];
+        t.origin_z += m * self.lattice.pos(mk.id[k] as usize)[2];
+        t.frag += m * mk.frag[k];
         t.fines += m * fines;
         t.fines_z += m * fines * self.lattice.pos(mk.id[k] as usize)[2];
         t.sizes.push((dist, m));
@@ -876,7 +902,7 @@ impl<'a> Engine<'a> {
             t.waste += m;
             t.fines_waste += m * fines;
         }
-        let rilled = self.markers.rill[k];
+        let rilled = mk.rill[k];
         if rilled > 0.0 {
             t.rilled += m;
             t.rill_dist += m * rilled;
@@ -1014,7 +1040,7 @@ impl<'a> Engine<'a> {
     }
 
     /// Writes the period's extraction rows and snapshots, and applies the correction.
-    fn close_period(&mut self, p: usize, period: i64) {
+    fn close_period(&mut self, p: usize, period: i64, drawing: &[usize]) {
         let scene = self.scene;
         let last = p + 1 == scene.periods.len();
         let surface = &self.scenario.outputs.surface_periods;
@@ -1027,28 +1053,34 @@ impl<'a> Engine<'a> {
         let row = scene.schedule.period(p);
         let ex = &mut self.out.extraction;
         for d in 0..row.len() {
-            let mut t = std::mem::replace(
-                &mut self.tally[d],
-                Tally {
-                    grade: vec![0.0; scene.blocks.grades.len()],
-                    lith: vec![0.0; scene.blocks.lithology_names.len()],
-                    ..Default::default()
-                },
-            );
+            let bm = &scene.blocks;
+            let fresh = Tally::new(bm.grades.len(), bm.lithology_names.len());
+            let mut t = std::mem::replace(&mut self.tally[d], fresh);
             let scheduled = row[d];
-            if scheduled <= 0.0 && t.count == 0 && self.carry[d] == 0.0 {
+            if scheduled <= 0.0 && t.count == 0 {
                 continue;
             }
-            let target = scheduled + self.carry[d];
-            let (c, credited) = if t.mass > 0.0 {
-                let c = (target / t.mass).clamp(CORRECTION_BOUNDS.0, CORRECTION_BOUNDS.1);
-                (c, c * t.mass)
+            // Credited the schedule while flowing (`crediting`), else what it drew.
+            let s_end = self.sched_cum[d] + scheduled;
+            let stream = &self.streams[d];
+            let marker = stream
+                .mean_mass()
+                .unwrap_or(self.marker_mass[self.drawpoint_block[d]]);
+            let trail = (crediting::TRAIL_MARKERS * marker).max(scheduled);
+            let caved = drawing.contains(&d);
+            let flowing = caved && stream.flowing(s_end, trail);
+            let credited = if flowing {
+                scheduled
             } else {
-                (1.0, 0.0)
+                t.mass.min(scheduled)
             };
-            self.carry[d] = target - credited;
+            let c = if t.mass > 0.0 {
+                credited / t.mass
+            } else {
+                f64::NAN
+            };
+            self.carry[d] += scheduled - credited;
             self.cum[d] += credited;
-            let per = |x: f64| if t.mass > 0.0 { x / t.mass } else { f64::NAN };
             ex.drawpoint.push(d as u32);
             ex.period.push(period);
             ex.scheduled_tonnes.push(scheduled);
@@ -1058,41 +1090,29 @@ impl<'a> Engine<'a> {
             ex.shortfall_tonnes.push(self.carry[d]);
             ex.cum_tonnes.push(self.cum[d]);
             ex.markers.push(t.count);
-            ex.dilution.push(per(t.waste));
-            ex.origin_z.push(per(t.origin_z));
             ex.hod
                 .push(self.cum[d] / self.hod_density_area[d].max(1e-12));
-            ex.frag_size.push(per(t.frag));
-            ex.fines_share.push(per(t.fines));
-            let [p20, p50, p80] = fragmentation::p20_p50_p80(&mut t.sizes);
-            ex.frag_p20.push(p20);
-            ex.frag_p50.push(p50);
-            ex.frag_p80.push(p80);
-            let per_fines = |x: f64| if t.fines > 0.0 { x / t.fines } else { f64::NAN };
-            ex.fines_origin_z.push(per_fines(t.fines_z));
-            ex.fines_waste_share.push(per_fines(t.fines_waste));
-            ex.percolation.push(per(t.percolated));
             ex.air_gap.push(self.imzs[d].air);
-            ex.rilled_share.push(per(t.rilled));
-            ex.rill_distance.push(if t.rilled > 0.0 {
-                t.rill_dist / t.rilled
-            } else {
-                f64::NAN
-            });
-            let short = self.carry[d] > 1e-6 * target.max(1.0);
-            ex.status.push(if scheduled <= 0.0 && t.count == 0 {
+            // The period's own markers for now; `finish` reads them from the stream.
+            t.derived().push(ex);
+            let imz = &self.imzs[d];
+            let short = credited < scheduled;
+            ex.status.push(if scheduled <= 0.0 {
                 "idle"
             } else if short {
                 "short"
             } else {
                 "ok"
             });
-            for (g, v) in t.grade.iter().enumerate() {
-                ex.grades[g].push(per(*v));
-            }
-            for (l, v) in t.lith.iter().enumerate() {
-                ex.lithology[l].push(per(*v));
-            }
+            ex.short_reason.push(if !short {
+                ""
+            } else if !caved {
+                "uncaved"
+            } else if imz.blocked && imz.air > 0.0 {
+                "blocked"
+            } else {
+                "exhausted"
+            });
         }
         if self.scenario.outputs.imz_every_period || last {
             let imz = &mut self.out.imz;
@@ -1181,8 +1201,50 @@ impl<'a> Engine<'a> {
         s
     }
 
+    /// What each extraction row drew, read from its drawpoint's stream over the row's
+    /// scheduled interval (`crediting`), in place of the row's own markers.
+    fn read_streams(&mut self) {
+        let scene = self.scene;
+        let bm = &scene.blocks;
+        let at: std::collections::HashMap<i64, usize> = scene
+            .periods
+            .id
+            .iter()
+            .enumerate()
+            .map(|(i, &p)| (p, i))
+            .collect();
+        // Per drawpoint, cumulative scheduled tonnes before each period.
+        let n_dp = scene.drawpoints.len();
+        let mut before = vec![vec![0.0; n_dp]; scene.periods.len() + 1];
+        for p in 0..scene.periods.len() {
+            let row = scene.schedule.period(p);
+            for d in 0..n_dp {
+                before[p + 1][d] = before[p][d] + row[d];
+            }
+        }
+        let ex = &self.out.extraction;
+        let derived: Vec<crediting::Derived> = (0..ex.drawpoint.len())
+            .into_par_iter()
+            .map(|k| {
+                let d = ex.drawpoint[k] as usize;
+                let p = at[&ex.period[k]];
+                let stream = &self.streams[d];
+                let rows = stream.window(before[p][d], before[p + 1][d], crediting::GRADE_MARKERS);
+                let mut t = Tally::new(bm.grades.len(), bm.lithology_names.len());
+                for r in rows {
+                    self.contribute(&self.drawn.m, stream.row[r] as usize, &mut t);
+                }
+                t.derived()
+            })
+            .collect();
+        for (k, dv) in derived.into_iter().enumerate() {
+            dv.set(&mut self.out.extraction, k);
+        }
+    }
+
     /// Completes the output: the drawn-marker table, the mass balance and warnings.
     fn finish(mut self) -> RunOutput {
+        self.read_streams();
         let bm = &self.scene.blocks;
         let dm = &self.drawn;
         let mut order: Vec<usize> = (0..dm.m.len()).collect();
@@ -1408,20 +1470,35 @@ mod tests {
         .into_iter()
         .enumerate()
         {
-            ex.drawpoint.push(k as u32);
+            ex.drawpoint.push((k % 2) as u32);
             ex.correction.push(c);
             ex.marker_tonnes.push(m);
+            ex.tonnes.push(if m > 0.0 { c * m } else { 5.0 });
             ex.status.push(st);
         }
         let s = correction_stats(&ex);
         // Quantiles over the four ok rows that drew markers; bounds over every row.
         assert_eq!((s.rows, s.p10, s.median, s.p90), (4, 0.9, 1.0, 1.1));
         assert_eq!((s.at_lower_bound, s.at_upper_bound), (0, 1));
-        assert!(correction_warning(&s).is_none());
-        let biased = CorrectionStats { median: 0.96, ..s };
-        assert!(correction_warning(&biased)
+        // Drawpoint 0: (9 + 10.2) / 20 = 0.96; drawpoint 1: (10 + 11 + 5) / 20 = 1.3, its ok
+        // row that drew no marker counting with its 5 t credited.
+        assert!(
+            (s.drawpoint_median - 0.96).abs() < 1e-12,
+            "{}",
+            s.drawpoint_median
+        );
+        let mut one = ex.clone();
+        one.status[0] = "short";
+        one.status[2] = "short";
+        assert!((correction_stats(&one).drawpoint_median - 1.3).abs() < 1e-12);
+        assert!(correction_warning(&s)
             .unwrap()
-            .contains("median correction factor is 0.960"));
+            .contains("median ratio of credited over marker tonnes is 0.960"));
+        let fair = CorrectionStats {
+            drawpoint_median: 1.02,
+            ..s
+        };
+        assert!(correction_warning(&fair).is_none());
         assert!(correction_warning(&CorrectionStats::default()).is_none());
     }
 

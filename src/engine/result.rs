@@ -75,6 +75,10 @@ pub struct Extraction {
     /// ok | short | idle.
     #[serde(deserialize_with = "static_statuses")]
     pub status: Vec<&'static str>,
+    /// Why a `short` row could not deliver (`engine::crediting`): uncaved | blocked |
+    /// exhausted; empty for the other rows.
+    #[serde(default, deserialize_with = "static_reasons")]
+    pub short_reason: Vec<&'static str>,
     /// `grades[g][row]`.
     pub grades: Vec<Vec<f64>>,
     /// `lithology[l][row]` mass shares.
@@ -237,9 +241,11 @@ pub struct MassBalance {
     pub correction: CorrectionStats,
 }
 
-/// Distribution of the mass-correction factor c = target / marker tonnes (engine docs,
-/// mass balance). It corrects the discreteness of markers only, so its median is 1 to
-/// within the run's discreteness; `Engine` warns when the median leaves 1 ± 0.03.
+/// Distribution of the correction factor c = credited / marker tonnes (`engine::crediting`):
+/// how far the markers each drawpoint-period drew are from the tonnes credited. It is the
+/// discreteness of markers alone when the kinematics conserve mass, so the per-drawpoint
+/// ratio over a run is 1 to within a few markers; `Engine` warns when the median of that
+/// ratio over the drawpoints leaves 1 ± 0.03.
 #[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct CorrectionStats {
     /// Drawpoint-periods counted (status `ok`, marker tonnes > 0).
@@ -250,10 +256,16 @@ pub struct CorrectionStats {
     pub p10: f64,
     /// 90th percentile of c.
     pub p90: f64,
-    /// Rows of the whole table (any status) whose c sits at the lower bound 0.1.
+    /// Rows of the whole table (any status, with markers) whose c is at or below
+    /// MassFlow's lower bound 0.1.
     pub at_lower_bound: u64,
-    /// Rows of the whole table (any status) whose c sits at the upper bound 2.
+    /// Rows of the whole table (any status, with markers) whose c is at or above
+    /// MassFlow's upper bound 2.
     pub at_upper_bound: u64,
+    /// Median over the drawpoints of their credited over marker tonnes in `ok` rows over
+    /// the run.
+    #[serde(default)]
+    pub drawpoint_median: f64,
 }
 
 /// Resolution actually used.
@@ -325,17 +337,35 @@ pub struct RunOutput {
 /// Row statuses of the extraction report.
 pub const STATUSES: [&str; 3] = ["ok", "short", "idle"];
 
+/// Why a short row could not deliver: the ground above the drawpoint has not caved; its
+/// IMZ is held under uncaved ground and has drained into the air gap; its column is
+/// exhausted.
+pub const SHORT_REASONS: [&str; 4] = ["", "uncaved", "blocked", "exhausted"];
+
 /// Reads `Extraction::status` back from a checkpoint as the static names.
 fn static_statuses<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Vec<&'static str>, D::Error> {
+    static_names(d, &STATUSES, "row status")
+}
+
+/// Reads `Extraction::short_reason` back from a checkpoint as the static names.
+fn static_reasons<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Vec<&'static str>, D::Error> {
+    static_names(d, &SHORT_REASONS, "short reason")
+}
+
+fn static_names<'de, D: serde::Deserializer<'de>>(
+    d: D,
+    known: &[&'static str],
+    what: &str,
+) -> Result<Vec<&'static str>, D::Error> {
     let names: Vec<String> = serde::Deserialize::deserialize(d)?;
     names
         .iter()
         .map(|n| {
-            STATUSES
+            known
                 .iter()
                 .find(|s| *s == n)
                 .copied()
-                .ok_or_else(|| serde::de::Error::custom(format!("unknown row status {n:?}")))
+                .ok_or_else(|| serde::de::Error::custom(format!("unknown {what} {n:?}")))
         })
         .collect()
 }

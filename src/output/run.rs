@@ -108,6 +108,7 @@ pub fn write_extraction(path: &Path, scene: &Scene, t: Extraction) -> Result<(),
 pub fn extraction_batch(scene: &Scene, t: Extraction) -> Result<RecordBatch, ArrowError> {
     let blocks = &scene.blocks;
     let status = Arc::new(StringArray::from(t.status)) as ArrayRef;
+    let short_reason = Arc::new(StringArray::from(t.short_reason)) as ArrayRef;
     let fixed = vec![
         ("drawpoint", names(&t.drawpoint, &scene.drawpoints.name)),
         ("period", i64s(t.period)),
@@ -133,6 +134,7 @@ pub fn extraction_batch(scene: &Scene, t: Extraction) -> Result<RecordBatch, Arr
         ("rilled_share", f64s_or_null(t.rilled_share)),
         ("rill_distance", f64s_or_null(t.rill_distance)),
         ("status", status),
+        ("short_reason", short_reason),
     ];
     let grades = blocks
         .grade_names

@@ -234,6 +234,7 @@ fn fake_run(scene: &Scene) -> RunOutput {
         rilled_share: v(0.05),
         rill_distance: v(3.0),
         status: vec!["ok", "short", "idle", "ok", "ok", "short"],
+        short_reason: vec!["", "blocked", "", "", "", "exhausted"],
         grades: vec![v(0.25)],
         lithology: (0..n_lith).map(|l| v(0.1 * l as f64)).collect(),
     };
@@ -317,6 +318,7 @@ fn fake_run(scene: &Scene) -> RunOutput {
                 p90: 1.0,
                 at_lower_bound: 0,
                 at_upper_bound: 1,
+                drawpoint_median: 1.01,
             },
         },
         resolution: ResolvedResolution {

@@ -1,0 +1,312 @@
+//! Crediting a drawpoint's draw: the tonnes of each period, and the material they stand for.
+//!
+//! Markers are discrete. A default marker on mine-scale blocks weighs about as much as one
+//! or two drawpoint-days, so crediting each period with the markers it happened to draw
+//! leaves many days with no marker (no grade, a shortfall carried to the next day) and the
+//! next with two. The summary is silent on crediting; MassFlow scales each period's marker
+//! tonnes by a bounded factor. We credit the schedule, and read what was drawn from the
+//! drawpoint's stream.
+//!
+//! # The stream
+//! A drawpoint's drawn markers, in the order drawn, each at its draw time τ: the
+//! drawpoint's cumulative scheduled tonnes at the middle of the step that drew it. Period p
+//! stands for the scheduled interval [S_{p−1}, S_p] of that stream.
+//!
+//! # Tonnes
+//! A period is credited its scheduled tonnes while the drawpoint is flowing: over the last
+//! `max(TRAIL_MARKERS` markers' mass, the period's schedule) of scheduled tonnes, its
+//! markers weigh at least [`FLOWING`] of what was scheduled (or the draw has not yet
+//! reached that much). Otherwise it really could not deliver (its column is exhausted, or
+//! its IMZ is held under uncaved ground and has drained), and it is credited the marker
+//! tonnes it drew, `short`, with the reason; so is a drawpoint whose ground has not caved,
+//! which draws nothing. What a period could not deliver is reported as `shortfall_tonnes`
+//! (the running total) and is not credited later. Over a run the credited tonnes are the
+//! schedule less those shortfalls, exactly.
+//!
+//! # What was drawn
+//! A period's grades, dilution, origin elevation, fragment sizes, fines and lithology shares
+//! are the mass-weighted means over the markers of its interval, or, where the interval
+//! holds fewer than [`GRADE_MARKERS`], over the [`GRADE_MARKERS`] markers nearest its
+//! middle. So a period always has a grade when its drawpoint drew anything, a marker counts
+//! in every short period around the one that drew it, and monthly periods (hundreds of
+//! markers each) read exactly their own markers. `marker_tonnes` and `markers` stay the
+//! period's own (the discreteness the crediting smooths), and `correction` is credited over
+//! marker tonnes, a diagnostic.
+
+use std::ops::Range;
+
+use super::fragmentation::{self, SizeDist};
+use super::result::Extraction;
+
+/// Markers whose mass sets the trailing window over which a drawpoint is judged flowing.
+pub const TRAIL_MARKERS: f64 = 60.0;
+
+/// Share of its schedule a drawpoint's markers must weigh over the trailing window for the
+/// drawpoint to count as flowing: half, so that the discreteness of ten markers never
+/// makes a drawpoint short, while a column that stops delivering is short within a window.
+pub const FLOWING: f64 = 0.5;
+
+/// Fewest markers a period's grades are read from. On the mine scene's daily schedule (the
+/// default resolution's 3.4 m markers weigh about half a drawpoint-day) the relative Mo
+/// grade RMSE per drawpoint-day over the first 400 days, against a run at 1.4 m markers,
+/// is 0.89% at 6, 0.76% at 10 and 0.69% at 16; per 91 days it is 0.33%, 0.34% and 0.37%:
+/// wider windows blur the grade's changes. 10 keeps the quarterly error of the
+/// period-by-period markers (0.34%).
+pub const GRADE_MARKERS: usize = 10;
+
+/// One drawpoint's stream (see the module docs): draw time τ, mass and row in the drawn
+/// markers, in the order drawn (τ never decreases).
+#[derive(Debug, Clone, Default)]
+pub struct Stream {
+    /// Draw time τ: cumulative scheduled tonnes, t.
+    pub tau: Vec<f64>,
+    /// Marker mass, t.
+    pub mass: Vec<f64>,
+    /// Row in `DrawnMarkers`.
+    pub row: Vec<u32>,
+    /// Running sums of `mass` (so the mass over any stretch is two look-ups).
+    cum: Vec<f64>,
+}
+
+impl Stream {
+    /// Appends a marker drawn at `tau`.
+    pub fn push(&mut self, tau: f64, mass: f64, row: usize) {
+        debug_assert!(self.tau.last().is_none_or(|&t| t <= tau));
+        self.tau.push(tau);
+        self.mass.push(mass);
+        self.row.push(row as u32);
+        self.cum.push(self.total() + mass);
+    }
+
+    /// Mass drawn so far, t.
+    fn total(&self) -> f64 {
+        self.cum.last().copied().unwrap_or(0.0)
+    }
+
+    /// Mean marker mass, if any was drawn.
+    pub fn mean_mass(&self) -> Option<f64> {
+        (!self.mass.is_empty()).then(|| self.total() / self.mass.len() as f64)
+    }
+
+    /// Marker mass drawn at τ in (from, to].
+    pub fn mass_in(&self, from: f64, to: f64) -> f64 {
+        let upto = |n: usize| if n == 0 { 0.0 } else { self.cum[n - 1] };
+        let a = self.tau.partition_point(|&t| t <= from);
+        let b = self.tau.partition_point(|&t| t <= to);
+        upto(b) - upto(a)
+    }
+
+    /// Whether the drawpoint is flowing when its schedule has reached `s_end`: over the
+    /// trailing `window` of scheduled tonnes it drew at least [`FLOWING`] of them in
+    /// markers. Before the schedule has reached one window it is taken as flowing.
+    pub fn flowing(&self, s_end: f64, window: f64) -> bool {
+        s_end < window || self.mass_in(s_end - window, s_end) >= FLOWING * window
+    }
+
+    /// The markers that stand for the scheduled interval [lo, hi]: those drawn in it, or,
+    /// where fewer than `k`, the `k` nearest its middle (all of them if there are fewer).
+    pub fn window(&self, lo: f64, hi: f64, k: usize) -> Range<usize> {
+        let n = self.tau.len();
+        let (mut a, mut b) = (
+            self.tau.partition_point(|&t| t < lo),
+            self.tau.partition_point(|&t| t <= hi),
+        );
+        if n <= k {
+            return 0..n;
+        }
+        let mid = 0.5 * (lo + hi);
+        while b - a < k {
+            let left = (a > 0).then(|| mid - self.tau[a - 1]);
+            let right = (b < n).then(|| self.tau[b] - mid);
+            match (left, right) {
+                (Some(l), Some(r)) if l <= r => a -= 1,
+                (Some(_), None) => a -= 1,
+                _ => b += 1,
+            }
+        }
+        a..b
+    }
+}
+
+/// Mass-weighted sums over a set of drawn markers (a period's, or a window of a stream).
+#[derive(Debug, Clone, Default)]
+pub struct Tally {
+    /// Σ mass, t.
+    pub mass: f64,
+    /// Markers.
+    pub count: i64,
+    /// Σ mass × grade, per grade.
+    pub grade: Vec<f64>,
+    /// Σ mass per lithology.
+    pub lith: Vec<f64>,
+    /// Σ mass × origin elevation.
+    pub origin_z: f64,
+    /// Σ mass × fragment size.
+    pub frag: f64,
+    /// Σ mass × fines share.
+    pub fines: f64,
+    /// Waste mass.
+    pub waste: f64,
+    /// Rilled mass.
+    pub rilled: f64,
+    /// Σ rilled mass × distance rilled.
+    pub rill_dist: f64,
+    /// Size distribution and mass of each marker.
+    pub sizes: Vec<(SizeDist, f64)>,
+    /// Σ fines mass × origin elevation.
+    pub fines_z: f64,
+    /// Fines mass that is waste.
+    pub fines_waste: f64,
+    /// Σ mass × accumulated percolation distance.
+    pub percolated: f64,
+}
+
+impl Tally {
+    /// An empty tally for `grades` grades and `liths` lithologies.
+    pub fn new(grades: usize, liths: usize) -> Tally {
+        Tally {
+            grade: vec![0.0; grades],
+            lith: vec![0.0; liths],
+            ..Default::default()
+        }
+    }
+
+    /// The extraction columns that describe what the markers were (NaN where none).
+    pub fn derived(&mut self) -> Derived {
+        let per = |x: f64| {
+            if self.mass > 0.0 {
+                x / self.mass
+            } else {
+                f64::NAN
+            }
+        };
+        let per_fines = |x: f64| {
+            if self.fines > 0.0 {
+                x / self.fines
+            } else {
+                f64::NAN
+            }
+        };
+        Derived {
+            dilution: per(self.waste),
+            origin_z: per(self.origin_z),
+            frag_size: per(self.frag),
+            fines_share: per(self.fines),
+            frag_p: fragmentation::p20_p50_p80(&mut self.sizes),
+            fines_origin_z: per_fines(self.fines_z),
+            fines_waste_share: per_fines(self.fines_waste),
+            percolation: per(self.percolated),
+            rilled_share: per(self.rilled),
+            rill_distance: if self.rilled > 0.0 {
+                self.rill_dist / self.rilled
+            } else {
+                f64::NAN
+            },
+            grades: self.grade.iter().map(|&v| per(v)).collect(),
+            lith: self.lith.iter().map(|&v| per(v)).collect(),
+        }
+    }
+}
+
+/// The columns of an extraction row that say what was drawn ([`Tally::derived`]).
+#[derive(Debug, Clone)]
+pub struct Derived {
+    dilution: f64,
+    origin_z: f64,
+    frag_size: f64,
+    fines_share: f64,
+    frag_p: [f64; 3],
+    fines_origin_z: f64,
+    fines_waste_share: f64,
+    percolation: f64,
+    rilled_share: f64,
+    rill_distance: f64,
+    grades: Vec<f64>,
+    lith: Vec<f64>,
+}
+
+impl Derived {
+    /// Appends these to a new row of `ex`.
+    pub fn push(self, ex: &mut Extraction) {
+        ex.dilution.push(self.dilution);
+        ex.origin_z.push(self.origin_z);
+        ex.frag_size.push(self.frag_size);
+        ex.fines_share.push(self.fines_share);
+        ex.frag_p20.push(self.frag_p[0]);
+        ex.frag_p50.push(self.frag_p[1]);
+        ex.frag_p80.push(self.frag_p[2]);
+        ex.fines_origin_z.push(self.fines_origin_z);
+        ex.fines_waste_share.push(self.fines_waste_share);
+        ex.percolation.push(self.percolation);
+        ex.rilled_share.push(self.rilled_share);
+        ex.rill_distance.push(self.rill_distance);
+        for (g, v) in self.grades.into_iter().enumerate() {
+            ex.grades[g].push(v);
+        }
+        for (l, v) in self.lith.into_iter().enumerate() {
+            ex.lithology[l].push(v);
+        }
+    }
+
+    /// Sets these in row `k` of `ex`.
+    pub fn set(self, ex: &mut Extraction, k: usize) {
+        ex.dilution[k] = self.dilution;
+        ex.origin_z[k] = self.origin_z;
+        ex.frag_size[k] = self.frag_size;
+        ex.fines_share[k] = self.fines_share;
+        [ex.frag_p20[k], ex.frag_p50[k], ex.frag_p80[k]] = self.frag_p;
+        ex.fines_origin_z[k] = self.fines_origin_z;
+        ex.fines_waste_share[k] = self.fines_waste_share;
+        ex.percolation[k] = self.percolation;
+        ex.rilled_share[k] = self.rilled_share;
+        ex.rill_distance[k] = self.rill_distance;
+        for (g, v) in self.grades.into_iter().enumerate() {
+            ex.grades[g][k] = v;
+        }
+        for (l, v) in self.lith.into_iter().enumerate() {
+            ex.lithology[l][k] = v;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn stream(tau: &[f64]) -> Stream {
+        let mut s = Stream::default();
+        for (k, &t) in tau.iter().enumerate() {
+            s.push(t, 10.0, k);
+        }
+        s
+    }
+
+    #[test]
+    fn windows_take_the_interval_or_the_nearest_markers() {
+        let s = stream(&[5.0, 15.0, 25.0, 35.0, 45.0, 55.0, 65.0, 75.0]);
+        // Enough markers in the interval: exactly those.
+        assert_eq!(s.window(10.0, 60.0, 3), 1..6);
+        // Too few: widened to the k nearest the middle (30): 25, 35, then 15 (tie → left).
+        assert_eq!(s.window(28.0, 32.0, 3), 1..4);
+        // An interval with none, at the end of the stream: the last k.
+        assert_eq!(s.window(80.0, 90.0, 2), 6..8);
+        // Fewer markers than k: all of them.
+        assert_eq!(stream(&[1.0, 2.0]).window(0.0, 1.0, 5), 0..2);
+        assert_eq!(Stream::default().window(0.0, 1.0, 5), 0..0);
+    }
+
+    #[test]
+    fn flowing_needs_half_the_trailing_schedule_in_markers() {
+        let s = stream(&[5.0, 15.0, 25.0, 35.0]);
+        assert_eq!(s.mass_in(10.0, 35.0), 30.0);
+        assert_eq!(s.mean_mass(), Some(10.0));
+        // Up to τ = 40 the last 40 t drew 40 t: flowing; at 100 the last 40 t drew nothing.
+        assert!(s.flowing(40.0, 40.0));
+        assert!(!s.flowing(100.0, 40.0));
+        // Half is enough: the last 40 t up to τ = 55 drew 20 t (25 and 35); up to 66, 10 t.
+        assert!(s.flowing(55.0, 40.0));
+        assert!(!s.flowing(66.0, 40.0));
+        // Too early to judge.
+        assert!(Stream::default().flowing(30.0, 40.0));
+    }
+}
