@@ -54,17 +54,15 @@ pub const FLOWING: f64 = 0.5;
 /// period-by-period markers (0.34%).
 pub const GRADE_MARKERS: usize = 10;
 
-/// One drawpoint's stream (see the module docs): draw time τ, mass and row in the drawn
-/// markers, in the order drawn (τ never decreases).
+/// One drawpoint's stream (see the module docs): draw time τ, row in the drawn markers and
+/// running mass, in the order drawn (τ never decreases).
 #[derive(Debug, Clone, Default)]
 pub struct Stream {
     /// Draw time τ: cumulative scheduled tonnes, t.
     pub tau: Vec<f64>,
-    /// Marker mass, t.
-    pub mass: Vec<f64>,
     /// Row in `DrawnMarkers`.
     pub row: Vec<u32>,
-    /// Running sums of `mass` (so the mass over any stretch is two look-ups).
+    /// Running sums of the markers' mass, t (the mass over any stretch is two look-ups).
     cum: Vec<f64>,
 }
 
@@ -73,7 +71,6 @@ impl Stream {
     pub fn push(&mut self, tau: f64, mass: f64, row: usize) {
         debug_assert!(self.tau.last().is_none_or(|&t| t <= tau));
         self.tau.push(tau);
-        self.mass.push(mass);
         self.row.push(row as u32);
         self.cum.push(self.total() + mass);
     }
@@ -85,7 +82,7 @@ impl Stream {
 
     /// Mean marker mass, if any was drawn.
     pub fn mean_mass(&self) -> Option<f64> {
-        (!self.mass.is_empty()).then(|| self.total() / self.mass.len() as f64)
+        (!self.tau.is_empty()).then(|| self.total() / self.tau.len() as f64)
     }
 
     /// Marker mass drawn at τ in (from, to].
