@@ -1051,6 +1051,8 @@ impl<'a> Engine<'a> {
             self.catch_up(period);
         }
         let row = scene.schedule.period(p);
+        let mut caved = vec![false; row.len()];
+        drawing.iter().for_each(|&d| caved[d] = true);
         let ex = &mut self.out.extraction;
         for d in 0..row.len() {
             let bm = &scene.blocks;
@@ -1067,8 +1069,7 @@ impl<'a> Engine<'a> {
                 .mean_mass()
                 .unwrap_or(self.marker_mass[self.drawpoint_block[d]]);
             let trail = (crediting::TRAIL_MARKERS * marker).max(scheduled);
-            let caved = drawing.contains(&d);
-            let flowing = caved && stream.flowing(s_end, trail);
+            let flowing = caved[d] && stream.flowing(s_end, trail);
             let credited = if flowing {
                 scheduled
             } else {
@@ -1106,7 +1107,7 @@ impl<'a> Engine<'a> {
             });
             ex.short_reason.push(if !short {
                 ""
-            } else if !caved {
+            } else if !caved[d] {
                 "uncaved"
             } else if imz.blocked && imz.air > 0.0 {
                 "blocked"
