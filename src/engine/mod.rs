@@ -175,7 +175,9 @@ pub struct Engine<'a> {
     at: (usize, f64),
     /// Per drawpoint, its drawn markers as a stream (derived from `drawn`).
     streams: Vec<crediting::Stream>,
-    tally: Vec<Tally>,
+    /// Per drawpoint, the marker mass (t) and count drawn in the period being drawn (what
+    /// the markers were is read from the streams at the end, `read_streams`).
+    tally: Vec<(f64, i64)>,
     hod_density_area: Vec<f64>,
     /// Per drawpoint, the block just above it (for the mass of its markers before any is
     /// drawn).
@@ -242,7 +244,6 @@ impl<'a> Engine<'a> {
             })
             .collect();
         let n_dp = dp.len();
-        let tally = Tally::new(bm.grades.len(), bm.lithology_names.len());
         let mut out = RunOutput {
             resolution: res,
             ..Default::default()
@@ -279,7 +280,7 @@ impl<'a> Engine<'a> {
             sched_cum: vec![0.0; n_dp],
             at: (0, 0.0),
             streams: vec![crediting::Stream::default(); n_dp],
-            tally: vec![tally; n_dp],
+            tally: vec![(0.0, 0); n_dp],
             hod_density_area: tributary(scene),
             drawpoint_block: (0..n_dp)
                 .map(|d| {
@@ -622,7 +623,9 @@ impl<'a> Engine<'a> {
         self.mark_moved(cells);
         drawn.sort_unstable_by(|a, b| b.0.cmp(&a.0));
         for (k, d) in drawn {
-            self.credit(k, d as usize);
+            let t = &mut self.tally[d as usize];
+            t.0 += self.markers.mass[k];
+            t.1 += 1;
             let (p, frac) = self.at;
             let d = d as usize;
             let tau = self.sched_cum[d] + frac * self.scene.schedule.period(p)[d];
@@ -862,14 +865,7 @@ impl<'a> Engine<'a> {
         self.engulfed_mass.iter().sum()
     }
 
-    /// Adds marker row `k` to drawpoint `d`'s tally for the period.
-    fn credit(&mut self, k: usize, d: usize) {
-        let mut t = std::mem::take(&mut self.tally[d]);
-        self.contribute(&self.markers, k, &mut t);
-        self.tally[d] = t;
-    }
-
-    /// Adds row `k` of `mk` (moving or drawn markers) to a tally.
+    /// Adds row `k` of the drawn markers `mk` to a tally.
     fn contribute(&self, mk: &Markers, k: usize, t: &mut Tally) {
         let bm = &self.scene.blocks;
         let b = mk.block[k] as usize;
@@ -1053,13 +1049,12 @@ impl<'a> Engine<'a> {
         let row = scene.schedule.period(p);
         let mut caved = vec![false; row.len()];
         drawing.iter().for_each(|&d| caved[d] = true);
+        let bm = &scene.blocks;
         let ex = &mut self.out.extraction;
         for d in 0..row.len() {
-            let bm = &scene.blocks;
-            let fresh = Tally::new(bm.grades.len(), bm.lithology_names.len());
-            let mut t = std::mem::replace(&mut self.tally[d], fresh);
+            let (mass, count) = std::mem::take(&mut self.tally[d]);
             let scheduled = row[d];
-            if scheduled <= 0.0 && t.count == 0 {
+            if scheduled <= 0.0 && count == 0 {
                 continue;
             }
             // Credited the schedule while flowing (`crediting`), else what it drew.
@@ -1073,10 +1068,10 @@ impl<'a> Engine<'a> {
             let credited = if flowing {
                 scheduled
             } else {
-                t.mass.min(scheduled)
+                mass.min(scheduled)
             };
-            let c = if t.mass > 0.0 {
-                credited / t.mass
+            let c = if mass > 0.0 {
+                credited / mass
             } else {
                 f64::NAN
             };
@@ -1085,17 +1080,19 @@ impl<'a> Engine<'a> {
             ex.drawpoint.push(d as u32);
             ex.period.push(period);
             ex.scheduled_tonnes.push(scheduled);
-            ex.marker_tonnes.push(t.mass);
+            ex.marker_tonnes.push(mass);
             ex.correction.push(c);
             ex.tonnes.push(credited);
             ex.shortfall_tonnes.push(self.carry[d]);
             ex.cum_tonnes.push(self.cum[d]);
-            ex.markers.push(t.count);
+            ex.markers.push(count);
             ex.hod
                 .push(self.cum[d] / self.hod_density_area[d].max(1e-12));
             ex.air_gap.push(self.imzs[d].air);
-            // The period's own markers for now; `finish` reads them from the stream.
-            t.derived().push(ex);
+            // What was drawn is read from the stream at the end (`read_streams`).
+            Tally::new(bm.grades.len(), bm.lithology_names.len())
+                .derived()
+                .push(ex);
             let imz = &self.imzs[d];
             let short = credited < scheduled;
             ex.status.push(if scheduled <= 0.0 {
