@@ -20,7 +20,7 @@ use super::{Engine, EngineError, RunOutput};
 use crate::model::{Scenario, Scene};
 
 /// Format version: bump when the state's layout changes.
-const VERSION: u32 = 2;
+const VERSION: u32 = 3;
 
 #[derive(Serialize, Deserialize)]
 struct State {

@@ -242,6 +242,7 @@ mod tests {
             d: 0.1,
             area_frac: 1.0,
             flow_frac: 1.0,
+            ..Default::default()
         }
     }
 

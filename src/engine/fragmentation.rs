@@ -334,6 +334,8 @@ mod tests {
             shear_band_factor: 10.0,
             min_jump: 0.005,
             resample: 0.1,
+            redilate: 0.1,
+            perimeter_spacing: 0.1,
             r_cap: 100.0,
         };
         // Open ground all round the disk (a 50 m box of 1 m blocks), so A_f = 1.

