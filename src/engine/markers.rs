@@ -24,7 +24,8 @@
 //!   a new disk (R^old = 0) by ~3.7 R across the axis, and diverges as the porosity jump
 //!   vanishes, so we use the volume-balance form (`tests::radial_move_is_the_ring_dilation`).
 //!   Ground widened into for free (already dilated by a neighbour) absorbs no void and is
-//!   not pushed.
+//!   not pushed. A new disk (R^old = 0) has no interior to push; its ring dilates by the
+//!   vertical move alone.
 //! - Lateral, where the ring's dilation differs around the perimeter (part of it inside a
 //!   neighbour, already at n1): the radial move pushes the same on every ray, so the part
 //!   inside the neighbour would dilate past n1 and the stagnant part stop short of it. A
@@ -32,8 +33,7 @@
 //!   that must dilate to the side that must not ([`lateral`]); it changes no volume inside
 //!   the disk. Two drawpoints 8 m apart (4 m openings, 15 m blocks, 2.5 m markers) draw
 //!   0.972 of their schedule in markers with it and 0.949 without; 15 m apart, 0.996 and
-//!   0.981 (an isolated one, 0.981: markers still on their way). A new disk (R^old = 0) has no interior to push; its ring dilates by the
-//!   vertical move alone.
+//!   0.981 (an isolated one, 0.981: markers still on their way).
 //! - The vertical move interpolates the void linearly from Δv_i at the disk's base to
 //!   Δv_out at its top, so it stretches the disk's material by v_a, the volume the radial
 //!   move took from the interior: the interior stays at n1 and the ring reaches n1. Void
