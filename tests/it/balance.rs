@@ -349,14 +349,14 @@ fn unequal_draw_from_overlapping_imzs_keeps_each_drawpoints_balance() {
 
 /// A daily schedule on mine-scale blocks (9 drawpoints 15 m apart on 15 m blocks, 150 t a
 /// day each for 300 days, at the automatic resolution): markers of 96 t cross the opening a
-/// layer of four at a time, so 1707 of the 2700 drawpoint-days draw none. Every day is
+/// layer of four at a time, so 1454 of the 2700 drawpoint-days draw none. Every day is
 /// credited from its drawpoint's stream (`engine::crediting`): every drawpoint-day has a
 /// grade, every day of a flowing drawpoint its 150 t. Under the bounded per-period
-/// correction, 1450 of the 2700 drawpoint-days had no grade and 1702 were short. The 65
-/// short days are all the central drawpoint's, whose markers weigh 0.74 of its schedule:
-/// overlapping IMZs on all sides still pass part of its flow to its neighbours in
-/// superposition (the corner drawpoints weigh 1.08, the edge ones 0.96; 0.988 in all),
-/// and there its flow falls below half the schedule over a trailing window at times.
+/// correction, 1450 of the 2700 drawpoint-days had no grade and 1702 were short. The 54
+/// short days are all the central drawpoint's, whose markers weigh 0.77 of its schedule:
+/// at these coarse markers (3.75 m) the superposed flow still passes part of its column
+/// to its neighbours (the corner drawpoints weigh 1.03, the edge ones 0.94–0.96; 0.967 in
+/// all), and there its flow falls below half the schedule over a trailing window at times.
 #[test]
 fn a_daily_schedule_gives_every_drawpoint_day_its_tonnes_and_a_grade() {
     let dps: Vec<(f64, f64, f64)> = (0..9)
