@@ -32,8 +32,8 @@
 //!   potential flow inside R_old carries the difference across the disk, from the side
 //!   that must dilate to the side that must not ([`lateral`]); it changes no volume inside
 //!   the disk. Two drawpoints 8 m apart (4 m openings, 15 m blocks, 2.5 m markers) draw
-//!   0.972 of their schedule in markers with it and 0.949 without; 15 m apart, 0.996 and
-//!   0.981 (an isolated one, 0.981: markers still on their way).
+//!   1.001 of their schedule in markers with it and 0.973–0.976 without; 15 m apart, 0.996
+//!   and 0.978–0.982 (an isolated one, 0.981: markers still on their way).
 //! - The vertical move interpolates the void linearly from Δv_i at the disk's base to
 //!   Δv_out at its top, so it stretches the disk's material by v_a, the volume the radial
 //!   move took from the interior: the interior stays at n1 and the ring reaches n1. Void
