@@ -374,9 +374,15 @@ impl Stagnant {
 impl Ground<'_> {
     /// Whether the ground at a point is flowable.
     pub fn flowable(&self, p: [f64; 3]) -> bool {
+        self.flowable_block(p).is_some()
+    }
+
+    /// The block at a point, if there is one and it is flowable.
+    #[inline]
+    pub fn flowable_block(&self, p: [f64; 3]) -> Option<usize> {
         self.blocks
             .locate(p)
-            .is_some_and(|b| self.blocks.flowable(b, self.period))
+            .filter(|&b| self.blocks.flowable(b, self.period))
     }
 
     /// Reach of the flowable ground at level `z` from the axis (x, y): the largest distance
@@ -437,7 +443,7 @@ impl Ground<'_> {
         for k in 0..PERIMETER_POINTS {
             let (c, si) = UNIT_CIRCLE[2 * k];
             let p = [x + radius * c, y + radius * si, z];
-            let Some(b) = bm.locate(p).filter(|&b| bm.flowable(b, self.period)) else {
+            let Some(b) = self.flowable_block(p) else {
                 continue;
             };
             s.n1 += bm.n1[b];
@@ -497,7 +503,7 @@ impl Ground<'_> {
             let (ck, sk) = (c, si);
             (c, si) = (c * dc - si * ds, c * ds + si * dc);
             let p = [x + radius * ck, y + radius * sk, z];
-            let Some(b) = bm.locate(p).filter(|&b| bm.flowable(b, self.period)) else {
+            let Some(b) = self.flowable_block(p) else {
                 continue;
             };
             let pj = bm.n1[b] - bm.n0[b];

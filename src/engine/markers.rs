@@ -540,8 +540,9 @@ impl MotionField<'_> {
         // Disk bases this marker may cross, per IMZ: (IMZ, disk, radius after the radial
         // move, unit ray, Δz of that IMZ). Whether it crosses is known only once every
         // IMZ's move is summed.
-        let mut bases: [(u32, u32, f64, f64, f64, f64); 8] = [(0, 0, 0.0, 0.0, 0.0, 0.0); 8];
-        let mut extra: Vec<(u32, u32, f64, f64, f64, f64)> = Vec::new();
+        type Base = (u32, u32, f64, f64, f64, f64);
+        let mut bases: [Base; 8] = [(0, 0, 0.0, 0.0, 0.0, 0.0); 8];
+        let mut extra: Vec<Base> = Vec::new();
         let mut n_b = 0usize;
         for &d in self.grid.at(p[0], p[1]) {
             let g = &self.geoms[d as usize];
