@@ -255,6 +255,7 @@ mod tests {
             motion: &motion_ref,
             grid: &grid,
             ground: None,
+            reach: 0.0,
         };
         let mut bm = crate::model::synthetic::UniformBox::castro_isolated()
             .scene()
@@ -321,6 +322,7 @@ mod tests {
             motion: &motion_ref,
             grid: &grid,
             ground: None,
+            reach: 0.0,
         };
         let scene = crate::model::synthetic::UniformBox {
             extent: [10.0, 10.0, 6.0],

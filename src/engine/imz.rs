@@ -88,9 +88,11 @@
 //!   below), so overlapping IMZs merge through a funnel, not a step.
 //! - **Flowable reach.** A disk never widens past the farthest flowable point of its level
 //!   (`Ground::reach`): ground outside the model or not yet caved cannot be mobilised. A
-//!   disk may still be wider than the ground on one side (a drawpoint near a wall); the
-//!   void then fills only the flowable share A_f of its area (`Ground::area_fraction`),
-//!   so the marker pass divides vertical moves by A_f.
+//!   disk may still be wider than the ground on one side. Past one of the model's walls
+//!   the marker pass moves the ground by the IMZ's mirror image (`engine::markers`), so
+//!   the disk's flux stays whole in the model; where uncaved ground (or a corner of the
+//!   model) cuts it, the void fills only the flowable share A_f of its area
+//!   (`Ground::area_fraction`), and the marker pass divides vertical moves by A_f.
 //! - **Unflowable perimeter.** Points in uncaved blocks or outside the model cannot
 //!   dilate; the fraction f of flowable points scales the area that can grow:
 //!   R_i ← sqrt(R_i² + r v_i / (π h ε f)); with f = 0 the disk cannot widen (r = 0).
@@ -417,14 +419,17 @@ impl Ground<'_> {
     }
 
     /// Flowable share A_f of the area of a disk of radius `radius` at level `z`: the share
-    /// of flowable points on four equal-area rings (radii R √((k + ½)/4)) of 24 points.
+    /// of flowable points on four equal-area rings (radii R √((k + ½)/4)) of 24 points. A
+    /// point beyond the model's walls counts as its mirror image inside (`BlockModel::mirror`):
+    /// the marker pass moves ground across a wall by the IMZ's image, so a wall does not
+    /// make the void fill a smaller area (uncaved ground does).
     pub fn area_fraction(&self, x: f64, y: f64, z: f64, radius: f64) -> f64 {
         let mut n = 0usize;
         for ring in 0..AREA_RINGS {
             let a = radius * ((ring as f64 + 0.5) / AREA_RINGS as f64).sqrt();
             for k in 0..PERIMETER_POINTS {
                 let (c, si) = UNIT_CIRCLE[2 * k + ring];
-                n += usize::from(self.flowable([x + a * c, y + a * si, z]));
+                n += usize::from(self.flowable(self.blocks.mirror([x + a * c, y + a * si, z])));
             }
         }
         n as f64 / (AREA_RINGS * PERIMETER_POINTS) as f64

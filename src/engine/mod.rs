@@ -384,6 +384,7 @@ impl<'a> Engine<'a> {
             motion: &motion,
             grid: &grid,
             ground: Some((&self.scene.blocks, last)),
+            reach: widest(&geoms),
         })
     }
 
@@ -1340,8 +1341,14 @@ fn level_fields<'f>(
             motion: &motion[l],
             grid: &grids[l],
             ground: Some(ground),
+            reach: widest(geoms),
         })
         .collect()
+}
+
+/// The widest disk of any IMZ, m (how far from a wall an IMZ's image can reach).
+fn widest(geoms: &[ImzGeom]) -> f64 {
+    geoms.iter().map(ImzGeom::max_radius).fold(0.0, f64::max)
 }
 
 /// Whether an IMZ active at marker row `k`'s level reaches its cell (elsewhere its step

@@ -113,6 +113,28 @@ impl BlockModel {
         [0, 1, 2].map(|a| self.origin[a] + self.size[a] * self.dims[a] as f64)
     }
 
+    /// A point beyond one side of the grid's plan bounds reflected back across that side:
+    /// its image in the model's vertical wall. A point beyond two sides (off a corner) is
+    /// left where it is, outside.
+    #[inline]
+    pub fn mirror(&self, p: [f64; 3]) -> [f64; 3] {
+        let hi = self.max_corner();
+        let image = |a: usize| {
+            if p[a] < self.origin[a] {
+                Some(2.0 * self.origin[a] - p[a])
+            } else if p[a] > hi[a] {
+                Some(2.0 * hi[a] - p[a])
+            } else {
+                None
+            }
+        };
+        match (image(0), image(1)) {
+            (Some(x), None) => [x, p[1], p[2]],
+            (None, Some(y)) => [p[0], y, p[2]],
+            _ => p,
+        }
+    }
+
     /// Builds the grid index from block centres and a block size. Returns the rows of
     /// blocks that share a cell with an earlier block, and the rows off the grid, as
     /// errors for the validator: (row, reason).
