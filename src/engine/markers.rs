@@ -58,7 +58,7 @@
 //!   drew 0.85–0.95 of their schedule in markers and the row inside them 1.09–1.21; with
 //!   images, 0.92–1.03 (never-short drawpoints, p10 0.931, p90 1.014). A corner's double
 //!   image is left out (it would cost another fifth of the demo's run); A_f covers it.
-//!   The images cost about 1.4× the demo's run, whose IMZs all reach the walls.
+//!   The images cost about 1.5× the demo's run, whose IMZs all reach the walls.
 //! - Shear strain in the shear annulus: Γ = |Δz| / min(R, w); shear work Γ σ_n with the
 //!   Janssen σ_n = ρ_s (1 − n1) g R / (2 tan φ) (summary §6.3).
 //!
@@ -646,33 +646,22 @@ impl MotionField<'_> {
         // along a wall has no component through it and a cut disk's flux stays whole in the
         // model. The images of the IMZs of the cell at the wall nearest the mirrored point
         // are the candidates; none reaches a marker farther from the wall than the widest
-        // disk.
+        // disk. A corner's double image is left out (it would add a fifth to the demo's run
+        // for its four corner drawpoints); `BlockModel::mirror` leaves corner ground
+        // unmirrored to match.
         if let Some((bm, _)) = self.ground {
             let (lo, hi) = (bm.origin, bm.max_corner());
-            // Per axis: no mirror, or the mirror across the low or the high wall.
-            let side = |a: usize| {
-                let (to_lo, to_hi) = (p[a] - lo[a], hi[a] - p[a]);
-                [
-                    Some((p[a], p[a], 1.0)),
-                    (to_lo < self.reach).then(|| (2.0 * lo[a] - p[a], lo[a] + 1e-9, -1.0)),
-                    (to_hi < self.reach).then(|| (2.0 * hi[a] - p[a], hi[a] - 1e-9, -1.0)),
-                ]
-            };
-            let (xs, ys) = (side(0), side(1));
-            for (kx, mx) in xs.iter().enumerate() {
-                for (ky, my) in ys.iter().enumerate() {
-                    let (Some((qx, cx, sx)), Some((qy, cy, sy))) = (mx, my) else {
-                        continue;
-                    };
-                    // The IMZ itself, or an image in two walls: corner images are left out
-                    // (they would cost a fifth of the demo's run for its four corner
-                    // drawpoints), and `BlockModel::mirror` leaves corner ground unmirrored
-                    // to match.
-                    if (kx == 0) == (ky == 0) {
+            for a in 0..2 {
+                for (wall, inside) in [(lo[a], lo[a] + 1e-9), (hi[a], hi[a] - 1e-9)] {
+                    if (p[a] - wall).abs() >= self.reach {
                         continue;
                     }
-                    for &d in self.grid.at(*cx, *cy) {
-                        visit(d, [*qx, *qy, p[2]], *sx, *sy);
+                    let (mut q, mut at) = (p, p);
+                    q[a] = 2.0 * wall - p[a];
+                    at[a] = inside;
+                    let (sx, sy) = if a == 0 { (-1.0, 1.0) } else { (1.0, -1.0) };
+                    for &d in self.grid.at(at[0], at[1]) {
+                        visit(d, q, sx, sy);
                     }
                 }
             }
