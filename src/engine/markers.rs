@@ -58,7 +58,8 @@
 //!   drew 0.85–0.95 of their schedule in markers and the row inside them 1.09–1.21; with
 //!   images, 0.92–1.03 (never-short drawpoints, p10 0.931, p90 1.014). A corner's double
 //!   image is left out (it would cost another fifth of the demo's run); A_f covers it.
-//!   The images cost about 1.5× the demo's run, whose IMZs all reach the walls.
+//!   The images cost about 1.25× the demo's run (1.33× its CPU time), whose IMZs all
+//!   reach the walls.
 //! - Shear strain in the shear annulus: Γ = |Δz| / min(R, w); shear work Γ σ_n with the
 //!   Janssen σ_n = ρ_s (1 − n1) g R / (2 tan φ) (summary §6.3).
 //!
@@ -562,84 +563,93 @@ impl MotionField<'_> {
         let mut n_b = 0usize;
         // The moves of IMZ d evaluated at q, their plan components multiplied by (sx, sy):
         // q = p for the IMZ itself, its mirror across a wall for the IMZ's image.
-        let mut visit = |d: u32, q: [f64; 3], sx: f64, sy: f64| {
+        // Most IMZs listed for a cell miss the marker: they are rejected on the geometry's
+        // radii, inline, before the disk's motion is read (the motion's radius is the
+        // geometry's: both are the current one). Returns the disk, its fraction of height
+        // below q and q's offset from the axis.
+        let hit = |d: u32, q: [f64; 3]| -> Option<(usize, f64, f64, f64, f64)> {
             let g = &self.geoms[d as usize];
-            let motion = self.motion[d as usize];
             let t = (q[2] - g.z0) / g.h;
             if !(t >= 0.0) {
-                return;
+                return None;
             }
             let i = t as usize;
-            // Most IMZs listed for the cell miss the marker: they are rejected on the
-            // geometry's radii, which lie contiguous in memory, before the disk's motion
-            // is read. The motion's radius is the geometry's (both are the current one).
             let (ex, ey) = (q[0] - g.x, q[1] - g.y);
             let a2 = ex * ex + ey * ey;
-            if !g.radius.get(i).is_some_and(|&r| a2 <= r * r) {
-                return;
-            }
-            let Some(m) = motion.get(i) else { return };
-            debug_assert_eq!(m.r, g.radius[i]);
-            let a = a2.sqrt();
-            // The void entering the disk's base is Δv_i and the void leaving through its top
-            // Δv_out (Δv_{i+1} = (1 − r) Δv_i below another disk; at the top disk, what left
-            // the IMZ); the share absorbed dilates the disk. Interpolating Δv linearly over
-            // the disk's height spreads that dilation through the disk (markers move apart
-            // vertically), instead of moving the disk rigidly and leaving the void as a
-            // marker-free gap at its top. Both integrate to the same volumes through the
-            // disk's base and top. The void fills the flowable share A_f of the disk only,
-            // so the move is divided by it.
-            let t_in = t - i as f64;
-            let dv = m.dv + (m.dv_out - m.dv) * t_in;
-            let dz = vertical(dv, m.r, m.w, a) / m.area_frac;
-            let (ux, uy) = if a > 0.0 {
-                (ex / a, ey / a)
-            } else {
-                (0.0, 0.0)
-            };
-            let take = (m.dv - m.dv_out) / (g.h * m.flow_frac);
-            let mut da = radial(m.r_old, m.r, m.r, m.w, take, a);
-            // The inward move is the dilating ring pushing in along the marker's ray. In a
-            // disk cut by a wall or uncaved ground (A_f < 1) there is no ring on a ray that
-            // leaves the flowable ground before the new radius, so nothing pushes there
-            // (otherwise markers are pulled off the wall, leaving a void behind them).
-            if da != 0.0 && m.area_frac < 1.0 {
-                if let Some((bm, period)) = self.ground {
-                    let reach = m.r * (1.0 - 1e-9);
-                    let rim = bm.mirror([g.x + ux * reach, g.y + uy * reach, q[2]]);
-                    if !bm.locate(rim).is_some_and(|b| bm.flowable(b, period)) {
-                        da = 0.0;
+            g.radius
+                .get(i)
+                .is_some_and(|&r| a2 <= r * r)
+                .then_some((i, t, ex, ey, a2))
+        };
+        let mut visit =
+            |d: u32, q: [f64; 3], sx: f64, sy: f64, hit: (usize, f64, f64, f64, f64)| {
+                let (i, t, ex, ey, a2) = hit;
+                let g = &self.geoms[d as usize];
+                let motion = self.motion[d as usize];
+                let Some(m) = motion.get(i) else { return };
+                debug_assert_eq!(m.r, g.radius[i]);
+                let a = a2.sqrt();
+                // The void entering the disk's base is Δv_i and the void leaving through its top
+                // Δv_out (Δv_{i+1} = (1 − r) Δv_i below another disk; at the top disk, what left
+                // the IMZ); the share absorbed dilates the disk. Interpolating Δv linearly over
+                // the disk's height spreads that dilation through the disk (markers move apart
+                // vertically), instead of moving the disk rigidly and leaving the void as a
+                // marker-free gap at its top. Both integrate to the same volumes through the
+                // disk's base and top. The void fills the flowable share A_f of the disk only,
+                // so the move is divided by it.
+                let t_in = t - i as f64;
+                let dv = m.dv + (m.dv_out - m.dv) * t_in;
+                let dz = vertical(dv, m.r, m.w, a) / m.area_frac;
+                let (ux, uy) = if a > 0.0 {
+                    (ex / a, ey / a)
+                } else {
+                    (0.0, 0.0)
+                };
+                let take = (m.dv - m.dv_out) / (g.h * m.flow_frac);
+                let mut da = radial(m.r_old, m.r, m.r, m.w, take, a);
+                // The inward move is the dilating ring pushing in along the marker's ray. In a
+                // disk cut by a wall or uncaved ground (A_f < 1) there is no ring on a ray that
+                // leaves the flowable ground before the new radius, so nothing pushes there
+                // (otherwise markers are pulled off the wall, leaving a void behind them).
+                if da != 0.0 && m.area_frac < 1.0 {
+                    if let Some((bm, period)) = self.ground {
+                        let reach = m.r * (1.0 - 1e-9);
+                        let rim = bm.mirror([g.x + ux * reach, g.y + uy * reach, q[2]]);
+                        if !bm.locate(rim).is_some_and(|b| bm.flowable(b, period)) {
+                            da = 0.0;
+                        }
                     }
                 }
-            }
-            let (lx, ly) = lateral(m, take, ex, ey, a);
-            st.dx += sx * (da * ux + lx);
-            st.dy += sy * (da * uy + ly);
-            st.dz += dz;
-            total += dz.abs();
-            if i > 0 && dz != 0.0 {
-                let base = (d, i as u32, (a + da).max(0.0), sx * ux, sy * uy, dz);
-                if n_b < bases.len() {
-                    bases[n_b] = base;
-                    n_b += 1;
-                } else {
-                    extra.push(base);
+                let (lx, ly) = lateral(m, take, ex, ey, a);
+                st.dx += sx * (da * ux + lx);
+                st.dy += sy * (da * uy + ly);
+                st.dz += dz;
+                total += dz.abs();
+                if i > 0 && dz != 0.0 {
+                    let base = (d, i as u32, (a + da).max(0.0), sx * ux, sy * uy, dz);
+                    if n_b < bases.len() {
+                        bases[n_b] = base;
+                        n_b += 1;
+                    } else {
+                        extra.push(base);
+                    }
                 }
-            }
-            // Shear strain in the annulus (a > R − w; the whole disk when R ≤ w).
-            if a > m.r - m.w {
-                let gamma = dz.abs() / m.r.min(m.w).max(1e-12);
-                st.strain += gamma;
-                st.work += gamma * m.sigma_n;
-                st.dbar += gamma * m.d;
-            }
-            if dz.abs() > strongest {
-                strongest = dz.abs();
-                st.drawn_by = d;
-            }
-        };
+                // Shear strain in the annulus (a > R − w; the whole disk when R ≤ w).
+                if a > m.r - m.w {
+                    let gamma = dz.abs() / m.r.min(m.w).max(1e-12);
+                    st.strain += gamma;
+                    st.work += gamma * m.sigma_n;
+                    st.dbar += gamma * m.d;
+                }
+                if dz.abs() > strongest {
+                    strongest = dz.abs();
+                    st.drawn_by = d;
+                }
+            };
         for &d in self.grid.at(p[0], p[1]) {
-            visit(d, p, 1.0, 1.0);
+            if let Some(h) = hit(d, p) {
+                visit(d, p, 1.0, 1.0, h);
+            }
         }
         // The model's vertical walls (method of images): an IMZ whose disk passes a wall
         // also moves the marker as its mirror image across that wall would, so the flow
@@ -661,7 +671,9 @@ impl MotionField<'_> {
                     at[a] = inside;
                     let (sx, sy) = if a == 0 { (-1.0, 1.0) } else { (1.0, -1.0) };
                     for &d in self.grid.at(at[0], at[1]) {
-                        visit(d, q, sx, sy);
+                        if let Some(h) = hit(d, q) {
+                            visit(d, q, sx, sy, h);
+                        }
                     }
                 }
             }
