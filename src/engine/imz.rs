@@ -218,18 +218,25 @@ impl ImzGeom {
     /// Whether a point lies inside this IMZ.
     #[inline]
     pub fn contains(&self, p: [f64; 3]) -> bool {
+        self.disk_at(p).is_some()
+    }
+
+    /// The disk that holds a point, if one does: its index i, the point's height in disk
+    /// units above the IMZ's base (i ≤ t < i + 1), and its plan offset (dx, dy) from the
+    /// axis with the squared distance dx² + dy².
+    #[inline]
+    pub fn disk_at(&self, p: [f64; 3]) -> Option<(usize, f64, [f64; 2], f64)> {
         let t = (p[2] - self.z0) / self.h;
         if !(t >= 0.0) {
-            return false;
+            return None;
         }
         let i = t as usize;
-        match self.radius.get(i) {
-            Some(&r) => {
-                let (dx, dy) = (p[0] - self.x, p[1] - self.y);
-                dx * dx + dy * dy <= r * r
-            }
-            None => false,
-        }
+        let (dx, dy) = (p[0] - self.x, p[1] - self.y);
+        let a2 = dx * dx + dy * dy;
+        self.radius
+            .get(i)
+            .is_some_and(|&r| a2 <= r * r)
+            .then_some((i, t, [dx, dy], a2))
     }
 }
 

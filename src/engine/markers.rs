@@ -561,29 +561,13 @@ impl MotionField<'_> {
         let mut bases: [Base; 8] = [(0, 0, 0.0, 0.0, 0.0, 0.0); 8];
         let mut extra: Vec<Base> = Vec::new();
         let mut n_b = 0usize;
-        // The moves of IMZ d evaluated at q, their plan components multiplied by (sx, sy):
-        // q = p for the IMZ itself, its mirror across a wall for the IMZ's image.
-        // Most IMZs listed for a cell miss the marker: they are rejected on the geometry's
-        // radii, inline, before the disk's motion is read (the motion's radius is the
-        // geometry's: both are the current one). Returns the disk, its fraction of height
-        // below q and q's offset from the axis.
-        let hit = |d: u32, q: [f64; 3]| -> Option<(usize, f64, f64, f64, f64)> {
-            let g = &self.geoms[d as usize];
-            let t = (q[2] - g.z0) / g.h;
-            if !(t >= 0.0) {
-                return None;
-            }
-            let i = t as usize;
-            let (ex, ey) = (q[0] - g.x, q[1] - g.y);
-            let a2 = ex * ex + ey * ey;
-            g.radius
-                .get(i)
-                .is_some_and(|&r| a2 <= r * r)
-                .then_some((i, t, ex, ey, a2))
-        };
+        // The moves of IMZ d at a point q in its disk i, at (ex, ey) from its axis, their plan
+        // components multiplied by (sx, sy): q = p for the IMZ itself, p's mirror across a
+        // wall for the IMZ's image. Most IMZs listed for a cell miss the marker; the callers
+        // reject them inline on the geometry's radii (`ImzGeom::disk_at`) before the disk's
+        // motion is read (the motion's radius is the geometry's: both are the current one).
         let mut visit =
-            |d: u32, q: [f64; 3], sx: f64, sy: f64, hit: (usize, f64, f64, f64, f64)| {
-                let (i, t, ex, ey, a2) = hit;
+            |d: u32, sx: f64, sy: f64, (i, t, [ex, ey], a2): (usize, f64, [f64; 2], f64)| {
                 let g = &self.geoms[d as usize];
                 let motion = self.motion[d as usize];
                 let Some(m) = motion.get(i) else { return };
@@ -614,7 +598,7 @@ impl MotionField<'_> {
                 if da != 0.0 && m.area_frac < 1.0 {
                     if let Some((bm, period)) = self.ground {
                         let reach = m.r * (1.0 - 1e-9);
-                        let rim = bm.mirror([g.x + ux * reach, g.y + uy * reach, q[2]]);
+                        let rim = bm.mirror([g.x + ux * reach, g.y + uy * reach, p[2]]);
                         if !bm.locate(rim).is_some_and(|b| bm.flowable(b, period)) {
                             da = 0.0;
                         }
@@ -647,8 +631,8 @@ impl MotionField<'_> {
                 }
             };
         for &d in self.grid.at(p[0], p[1]) {
-            if let Some(h) = hit(d, p) {
-                visit(d, p, 1.0, 1.0, h);
+            if let Some(h) = self.geoms[d as usize].disk_at(p) {
+                visit(d, 1.0, 1.0, h);
             }
         }
         // The model's vertical walls (method of images): an IMZ whose disk passes a wall
@@ -671,8 +655,8 @@ impl MotionField<'_> {
                     at[a] = inside;
                     let (sx, sy) = if a == 0 { (-1.0, 1.0) } else { (1.0, -1.0) };
                     for &d in self.grid.at(at[0], at[1]) {
-                        if let Some(h) = hit(d, q) {
-                            visit(d, q, sx, sy, h);
+                        if let Some(h) = self.geoms[d as usize].disk_at(q) {
+                            visit(d, sx, sy, h);
                         }
                     }
                 }
