@@ -20,7 +20,7 @@ use super::{Engine, EngineError, RunOutput};
 use crate::model::{Scenario, Scene};
 
 /// Format version: bump when the state's layout changes.
-const VERSION: u32 = 4;
+const VERSION: u32 = 5;
 
 #[derive(Serialize, Deserialize)]
 struct State {

@@ -156,7 +156,10 @@ pub struct Engine<'a> {
     pub resolution: ResolvedResolution,
     params: ImzParams,
     lattice: Lattice,
-    marker_mass: Vec<f64>,
+    /// Marker mass of each block at an interior lattice site, t (`Lattice::unit_masses`).
+    unit_mass: Vec<f64>,
+    /// In-situ mass the lattice gives each block, t (`Lattice::block_masses`).
+    lattice_mass: Vec<f64>,
     engulfed: Vec<bool>,
     /// In-situ mass engulfed per block, t (for the block fill and the air gap).
     engulfed_mass: Vec<f64>,
@@ -271,7 +274,8 @@ impl<'a> Engine<'a> {
             resolution: res,
             params,
             lattice,
-            marker_mass: lattice.marker_masses(bm),
+            unit_mass: lattice.unit_masses(bm),
+            lattice_mass: lattice.block_masses(bm, &lattice.unit_masses(bm)),
             engulfed: vec![false; lattice.len()],
             engulfed_mass: vec![0.0; bm.len()],
             imzs,
@@ -698,7 +702,7 @@ impl<'a> Engine<'a> {
             period,
             engulfed: &mut self.engulfed,
             engulfed_mass: &mut self.engulfed_mass,
-            marker_mass: &self.marker_mass,
+            unit_mass: &self.unit_mass,
             markers: &mut self.markers,
             size: &size,
         };
@@ -779,7 +783,7 @@ impl<'a> Engine<'a> {
         for j in 0..ny {
             for i in (0..nx).filter(|&i| cols[i + nx * j]) {
                 for b in (0..nz).filter_map(|k| block(i, j, k)) {
-                    mass[b] = full(b) - self.engulfed_mass[b];
+                    mass[b] = self.lattice_mass[b] - self.engulfed_mass[b];
                 }
             }
         }
@@ -984,10 +988,10 @@ impl<'a> Engine<'a> {
                 continue;
             }
             self.engulfed[id] = true;
-            self.engulfed_mass[b] += self.marker_mass[b];
+            let m = lat.site_mass(bm, id, self.unit_mass[b]);
+            self.engulfed_mass[b] += m;
             let d0 = fragmentation::initial_size(bm, b, seed, id as u64, sized);
-            self.markers
-                .push(id as u64, p, self.marker_mass[b], b as u32, d0);
+            self.markers.push(id as u64, p, m, b as u32, d0);
         }
     }
 
@@ -1065,7 +1069,7 @@ impl<'a> Engine<'a> {
             let stream = &self.streams[d];
             let marker = stream
                 .mean_mass()
-                .unwrap_or(self.marker_mass[self.drawpoint_block[d]]);
+                .unwrap_or(self.unit_mass[self.drawpoint_block[d]]);
             let trail = (crediting::TRAIL_MARKERS * marker).max(scheduled);
             let flowing = caved[d] && stream.flowing(s_end, trail);
             let credited = if flowing {

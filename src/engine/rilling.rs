@@ -132,8 +132,8 @@ pub struct RillState<'a> {
     pub engulfed: &'a mut [bool],
     /// Engulfed in-situ mass per block, t.
     pub engulfed_mass: &'a mut [f64],
-    /// Marker mass of each block's sites, t.
-    pub marker_mass: &'a [f64],
+    /// Marker mass of each block at an interior lattice site, t (`Lattice::unit_masses`).
+    pub unit_mass: &'a [f64],
     /// Moving markers.
     pub markers: &'a mut Markers,
     /// Primary fragment size of a newly mobilised site: (block, site id) → d0, m.
@@ -279,10 +279,10 @@ pub fn rill(st: &mut RillState) -> RillStats {
             let p = lat.pos(id);
             let Some(b) = bm.locate(p) else { continue };
             st.engulfed[id] = true;
-            st.engulfed_mass[b] += st.marker_mass[b];
+            let m = lat.site_mass(bm, id, st.unit_mass[b]);
+            st.engulfed_mass[b] += m;
             let d0 = (st.size)(b, id as u64);
-            st.markers
-                .push(id as u64, p, st.marker_mass[b], b as u32, d0);
+            st.markers.push(id as u64, p, m, b as u32, d0);
             stats.mobilised += 1;
             in_situ[c] = in_situ_top(&lat, bm, st.period, st.engulfed, c % nx, c / nx, lat.n[2]);
             st.markers.len() - 1

@@ -412,3 +412,51 @@ fn a_daily_schedule_gives_every_drawpoint_day_its_tonnes_and_a_grade() {
     let b = &out.balance;
     assert!((b.credited_tonnes + b.final_shortfall_tonnes - b.scheduled_tonnes).abs() <= 1e-6);
 }
+
+/// A marker stands for the ground around its site, not for a share of its block: where the
+/// spacing does not divide the blocks (50 mm blocks, 17.5 mm markers: columns of 2 and of 3
+/// sites per block along each axis), isolated draw over a block column of either kind draws
+/// the scheduled mass. Were a block's mass shared among its sites, the ground of a column of
+/// 2 × 2 sites would be (3/2)² = 2.25× as heavy, as markers, as that of one of 3 × 3; the
+/// drawpoint over it then drew 1.052× the schedule, and the one over 3 × 3 sites (next to
+/// columns of 2) 1.036×.
+///
+/// Tolerance 0.03: 10 kg a period for ten periods is ~4000 markers of 25 g; the lattice
+/// sites a disk engulfs differ from its area by the sites on its rim.
+#[test]
+fn markers_weigh_the_ground_they_stand_for_whatever_the_block_boundaries() {
+    let b = UniformBox::castro_isolated();
+    let s = 0.0175;
+    let lat = Lattice::new(&b.scene().blocks, s);
+    // Sites per block along x in the block whose centre is `x`.
+    let sites = |x: f64| {
+        lat.range(0, x - 0.5 * b.block[0], x + 0.5 * b.block[0])
+            .map_or(0, |(i0, i1)| i1 - i0 + 1)
+    };
+    let centres: Vec<f64> = (0..24).map(|j| -0.6 + 0.025 + 0.05 * j as f64).collect();
+    // The block nearest the centre of the box with `n` sites along each plan axis.
+    let near = |n: usize| {
+        (0..24)
+            .map(|j| -0.575 + 0.05 * j as f64)
+            .filter(|&x| sites(x) == n)
+            .min_by(|a, c| a.abs().total_cmp(&c.abs()))
+            .unwrap()
+    };
+    let mut ratio = Vec::new();
+    for n in [2, 3] {
+        let x = near(n);
+        let scene = UniformBox {
+            drawpoints: vec![(x, x, 0.12)],
+            tonnes: 0.01,
+            ..b.clone()
+        }
+        .scene();
+        let out = run(&scene, &scenario(0.025, s, 0.0004));
+        let r = out.balance.marker_tonnes / out.balance.scheduled_tonnes;
+        eprintln!("drawpoint over a block column of {n} × {n} sites at ({x:.3}, {x:.3}): marker / scheduled tonnes {r:.4}");
+        ratio.push(r);
+    }
+    for r in &ratio {
+        assert!((r - 1.0).abs() <= 0.03, "{ratio:?}");
+    }
+}
