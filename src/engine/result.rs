@@ -266,6 +266,10 @@ pub struct CorrectionStats {
     /// the run.
     #[serde(default)]
     pub drawpoint_median: f64,
+    /// The same median over the first and over the second half of each drawpoint's
+    /// credited tonnes in `ok` rows (a row counts in the half that holds its middle).
+    #[serde(default)]
+    pub halves_median: [f64; 2],
 }
 
 /// Resolution actually used.

@@ -319,6 +319,7 @@ fn fake_run(scene: &Scene) -> RunOutput {
                 at_lower_bound: 0,
                 at_upper_bound: 1,
                 drawpoint_median: 1.01,
+                halves_median: [1.0, 1.02],
             },
         },
         resolution: ResolvedResolution {
