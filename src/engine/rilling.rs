@@ -3,7 +3,7 @@
 //! # Free surface
 //! The top of the caved material, as a height field H over the lattice columns (one
 //! column per marker-lattice site in plan, spacing s): the highest of the moving markers in
-//! the column (their centre + s/2) and the in-situ caved ground (the highest flowable
+//! the column (their centre + half their height at n1, below) and the in-situ caved ground (the highest flowable
 //! lattice site that no IMZ has engulfed, + s/2). Draw lowers it where an IMZ reaches it,
 //! and the marker motion then leaves a surface cone above the drawpoint (summary §3.1).
 //!
@@ -16,12 +16,15 @@
 //! which the slope is steepest, wherever H_q − H_n > tan β · |q − n|, and repeats until no
 //! slope between neighbouring cells is steeper than repose.
 //!
-//! Resolution: a parcel is s thick in its column (a marker stands for s³ of ground), so a
-//! single column's height changes by whole parcels: one parcel between neighbouring columns
-//! is already a 45° slope, steeper than repose. A cell's mean height changes by s / CELL²
-//! per parcel, so slopes between cells (3 s apart) are resolved to 1/27 ≈ 2° at CELL = 3.
-//! A move must also lower the parcel by at least half a parcel (source top − destination
-//! top ≥ 1.5 s), so every move lowers the pile and the step ends.
+//! Resolution: a marker stands for s³ of ground at n0, so in situ a parcel is s thick in
+//! its column; moving, or rilled, it is dilated to n1 and s (1 − n0)/(1 − n1) thick (its
+//! solids at n1 over the column's area s²; the top of a column is its top marker's centre
+//! plus half that). A single column's height changes by whole parcels: one parcel between
+//! neighbouring columns is already a 45° slope, steeper than repose. A cell's mean height
+//! changes by about s / CELL² per parcel, so slopes between cells (3 s apart) are resolved
+//! to 1/27 ≈ 2° at CELL = 3. A move must also bring the parcel's centre down by at least
+//! s/2 (with a parcel s thick at both ends, source top − destination top ≥ 1.5 s), so every
+//! move lowers the pile and the step ends.
 //! - Mass: markers are moved, never made or lost; in-situ caved ground at the top of a
 //!   column is mobilised (engulfed) first, as the IMZs do.
 //! - Uncaved ground: a parcel only lands in flowable ground. It may travel laterally under
@@ -58,7 +61,7 @@ pub fn surface(
     }
     for k in 0..mk.len() {
         if let Some(c) = column(lat, mk.x[k], mk.y[k]) {
-            h[c] = h[c].max(mk.z[k] + 0.5 * lat.s);
+            h[c] = h[c].max(mk.z[k] + marker_half(bm, mk, k, lat.s));
         }
     }
     h
@@ -102,8 +105,24 @@ pub fn column(lat: &Lattice, x: f64, y: f64) -> Option<usize> {
 /// Where a parcel dropped on a column whose surface is at `h` comes to rest: its centre
 /// half a parcel above the surface (the floor of the lattice for an empty column).
 #[inline]
-fn landing(lat: &Lattice, h: f64) -> f64 {
-    h.max(lat.origin[2]) + 0.5 * lat.s
+fn landing(lat: &Lattice, h: f64, half: f64) -> f64 {
+    h.max(lat.origin[2]) + half
+}
+
+/// Half the height a marker of block `b` and mass `mass` stands for in its column: its
+/// solids at the block's dilated porosity, m / (ρ_s (1 − n1)), over the column's area s². Moving ground is at n1 (the
+/// IMZ's balance), and so is a parcel that rills: stacked s apart, as the lattice holds
+/// them in situ, rilled parcels would lie at n0 and be drawn 1.05–1.15× as heavy as the
+/// schedule late in the demo's draw.
+#[inline]
+fn half_height(bm: &BlockModel, b: usize, mass: f64, s: f64) -> f64 {
+    0.5 * mass / (bm.density[b] * (1.0 - bm.n1[b]) * s * s)
+}
+
+/// [`half_height`] of marker `k`.
+#[inline]
+fn marker_half(bm: &BlockModel, mk: &Markers, k: usize, s: f64) -> f64 {
+    half_height(bm, mk.block[k] as usize, mk.mass[k], s)
 }
 
 /// Rilling cells are CELL × CELL lattice columns (see the module docs).
@@ -174,7 +193,7 @@ pub fn rill(st: &mut RillState) -> RillStats {
     let top = |stacks: &[Vec<usize>], in_situ: &[f64], mk: &Markers, c: usize| -> f64 {
         let m = stacks[c]
             .last()
-            .map_or(f64::NEG_INFINITY, |&k| mk.z[k] + 0.5 * s);
+            .map_or(f64::NEG_INFINITY, |&k| mk.z[k] + marker_half(bm, mk, k, s));
         m.max(in_situ[c])
     };
     let columns = |q: usize| {
@@ -218,7 +237,7 @@ pub fn rill(st: &mut RillState) -> RillStats {
         let h_c = height(c);
         let from_site = stacks[c]
             .last()
-            .is_none_or(|&k| st.markers.z[k] + 0.5 * s < in_situ[c]);
+            .is_none_or(|&k| st.markers.z[k] + marker_half(bm, st.markers, k, s) < in_situ[c]);
         let site = |h: f64| {
             let k = ((h - 0.5 * s - lat.origin[2]) / s - 0.5).round().max(0.0) as usize;
             lat.id(c % nx, c / nx, k.min(lat.n[2] - 1))
@@ -230,6 +249,20 @@ pub fn rill(st: &mut RillState) -> RillStats {
             bm.friction[st.markers.block[*stacks[c].last().unwrap()] as usize]
         };
         let tan_b = tan_repose(phi);
+        // Half the height the parcel stands for where it is, and where it lands.
+        let half_here = if from_site {
+            0.5 * s
+        } else {
+            marker_half(bm, st.markers, *stacks[c].last().unwrap(), s)
+        };
+        let half = if from_site {
+            let id = site(in_situ[c]);
+            bm.locate(lat.pos(id)).map_or(0.5 * s, |b| {
+                half_height(bm, b, lat.site_mass(bm, id, st.unit_mass[b]), s)
+            })
+        } else {
+            half_here
+        };
         let (qi, qj) = ((q % cx) as i64, (q / cx) as i64);
         let mut best: Option<(f64, usize)> = None;
         for dj in -1i64..=1 {
@@ -245,20 +278,20 @@ pub fn rill(st: &mut RillState) -> RillStats {
                     continue;
                 }
                 // The parcel goes to the lowest column of the cell, and must come to rest
-                // at least half a parcel lower, in flowable ground.
+                // with its centre at least s/2 lower, in flowable ground.
                 let Some(n) =
                     columns(nq).min_by(|&a, &b| height(a).total_cmp(&height(b)).then(a.cmp(&b)))
                 else {
                     continue;
                 };
                 let h_low = height(n);
-                if h_c - h_low < 1.5 * s {
+                if h_c - h_low < half_here + half + 0.5 * s {
                     continue;
                 }
                 let p = [
                     lat.origin[0] + ((n % nx) as f64 + 0.5) * s,
                     lat.origin[1] + ((n / nx) as f64 + 0.5) * s,
-                    landing(&lat, h_low),
+                    landing(&lat, h_low, half),
                 ];
                 if !bm.locate(p).is_some_and(|b| bm.flowable(b, st.period)) {
                     continue;
@@ -295,7 +328,7 @@ pub fn rill(st: &mut RillState) -> RillStats {
         let dy = ((n / nx) as f64 - (c / nx) as f64) * s;
         m.x[k] += dx;
         m.y[k] += dy;
-        m.z[k] = landing(&lat, h_low);
+        m.z[k] = landing(&lat, h_low, half);
         m.rill[k] += dx.hypot(dy);
         stacks[n].push(k);
         stats.moves += 1;

@@ -433,7 +433,6 @@ fn markers_weigh_the_ground_they_stand_for_whatever_the_block_boundaries() {
         lat.range(0, x - 0.5 * b.block[0], x + 0.5 * b.block[0])
             .map_or(0, |(i0, i1)| i1 - i0 + 1)
     };
-    let centres: Vec<f64> = (0..24).map(|j| -0.6 + 0.025 + 0.05 * j as f64).collect();
     // The block nearest the centre of the box with `n` sites along each plan axis.
     let near = |n: usize| {
         (0..24)
