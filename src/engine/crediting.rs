@@ -15,9 +15,10 @@
 //! # Tonnes
 //! A period is credited its scheduled tonnes while the drawpoint is flowing: over the last
 //! `max(TRAIL_MARKERS` markers' mass, the period's schedule) of scheduled tonnes, its
-//! markers weigh at least [`FLOWING`] of what was scheduled (or the draw has not yet
-//! reached that much). Otherwise it really could not deliver (its column is exhausted, or
-//! its IMZ is held under uncaved ground and has drained), and it is credited the marker
+//! markers weigh what was scheduled to within their discreteness ([`FLOWING_SIGMAS`]), or
+//! the draw has not yet reached that much. Otherwise it really could not deliver (its IMZ
+//! draws air: its column is exhausted, or a pipe drawn down to it while rilling is off;
+//! or its IMZ is held under uncaved ground and has drained), and it is credited the marker
 //! tonnes it drew, `short`, with the reason; so is a drawpoint whose ground has not caved,
 //! which draws nothing. What a period could not deliver is reported as `shortfall_tonnes`
 //! (the running total) and is not credited later. Over a run the credited tonnes are the
@@ -41,10 +42,17 @@ use super::result::Extraction;
 /// Markers whose mass sets the trailing window over which a drawpoint is judged flowing.
 pub const TRAIL_MARKERS: f64 = 60.0;
 
-/// Share of its schedule a drawpoint's markers must weigh over the trailing window for the
-/// drawpoint to count as flowing: half, so that the discreteness of ten markers never
-/// makes a drawpoint short, while a column that stops delivering is short within a window.
-pub const FLOWING: f64 = 0.5;
+/// How far below its schedule, in standard deviations of the markers' discreteness, a
+/// drawpoint's markers may weigh over the trailing window and it still count as flowing.
+/// A window of N markers' worth of schedule draws a count of markers that scatters by
+/// about √N (the demo's monthly periods of ~250 markers scatter by 0.06 of their schedule,
+/// 1/√250 = 0.063), so a flowing drawpoint falls below 1 − 3/√N in about one window in a
+/// thousand: 0.61 of the schedule at the shortest window (60 markers), 0.81 over a monthly
+/// period of the demo. A drawpoint below it draws air: its column is drawn out, or (rilling
+/// off) the ground around a pipe drawn down to it stands and does not feed it. A fixed half
+/// credited the demo's drawpoints whose pipes reached them the schedule while their markers
+/// weighed 0.61–0.74 of it.
+pub const FLOWING_SIGMAS: f64 = 3.0;
 
 /// Fewest markers a period's grades are read from. On the mine scene's daily schedule (the
 /// default resolution's 3.4 m markers weigh about half a drawpoint-day) the relative Mo
@@ -94,10 +102,15 @@ impl Stream {
     }
 
     /// Whether the drawpoint is flowing when its schedule has reached `s_end`: over the
-    /// trailing `window` of scheduled tonnes it drew at least [`FLOWING`] of them in
-    /// markers. Before the schedule has reached one window it is taken as flowing.
-    pub fn flowing(&self, s_end: f64, window: f64) -> bool {
-        s_end < window || self.mass_in(s_end - window, s_end) >= FLOWING * window
+    /// trailing `window` of scheduled tonnes its markers (of mean mass `marker`) weigh at
+    /// least 1 − [`FLOWING_SIGMAS`] / √N of them, N = window / marker, less `step`, the
+    /// tonnes of one draw step (a step's markers share one τ, so the window's edges cut the
+    /// draw by whole steps: at four times the default increment a fixed share made
+    /// drawpoints of the sweep's scene short). Before the schedule has reached one window
+    /// it is taken as flowing.
+    pub fn flowing(&self, s_end: f64, window: f64, marker: f64, step: f64) -> bool {
+        let share = (1.0 - FLOWING_SIGMAS / (window / marker).sqrt()).max(0.0);
+        s_end < window || self.mass_in(s_end - window, s_end) >= share * window - step
     }
 
     /// The markers that stand for the scheduled interval [lo, hi]: those drawn in it, or,
@@ -293,17 +306,18 @@ mod tests {
     }
 
     #[test]
-    fn flowing_needs_half_the_trailing_schedule_in_markers() {
-        let s = stream(&[5.0, 15.0, 25.0, 35.0]);
-        assert_eq!(s.mass_in(10.0, 35.0), 30.0);
+    fn flowing_needs_the_trailing_schedule_in_markers_to_within_three_sigmas() {
+        // 100 markers of 10 t, one every 10 t of schedule.
+        let tau: Vec<f64> = (0..100).map(|k| 10.0 * k as f64 + 5.0).collect();
+        let s = stream(&tau);
+        assert_eq!(s.mass_in(100.0, 350.0), 250.0);
         assert_eq!(s.mean_mass(), Some(10.0));
-        // Up to τ = 40 the last 40 t drew 40 t: flowing; at 100 the last 40 t drew nothing.
-        assert!(s.flowing(40.0, 40.0));
-        assert!(!s.flowing(100.0, 40.0));
-        // Half is enough: the last 40 t up to τ = 55 drew 20 t (25 and 35); up to 66, 10 t.
-        assert!(s.flowing(55.0, 40.0));
-        assert!(!s.flowing(66.0, 40.0));
+        // A window of 1000 t: N = 100 markers, flowing down to 1 − 3/10 = 0.7 of it.
+        assert!(s.flowing(1000.0, 1000.0, 10.0, 0.0));
+        // Up to 1300 the last 1000 t drew 700 t (τ 305 … 995); up to 1310, 690 t.
+        assert!(s.flowing(1300.0, 1000.0, 10.0, 0.0));
+        assert!(!s.flowing(1310.0, 1000.0, 10.0, 0.0));
         // Too early to judge.
-        assert!(Stream::default().flowing(30.0, 40.0));
+        assert!(Stream::default().flowing(30.0, 40.0, 10.0, 0.0));
     }
 }

@@ -1093,7 +1093,8 @@ impl<'a> Engine<'a> {
                 .mean_mass()
                 .unwrap_or(self.unit_mass[self.drawpoint_block[d]]);
             let trail = (crediting::TRAIL_MARKERS * marker).max(scheduled);
-            let flowing = caved[d] && stream.flowing(s_end, trail);
+            let flowing =
+                caved[d] && stream.flowing(s_end, trail, marker, self.resolution.draw_increment);
             let credited = if flowing {
                 scheduled
             } else {

@@ -352,11 +352,12 @@ fn unequal_draw_from_overlapping_imzs_keeps_each_drawpoints_balance() {
 /// layer of four at a time, so 1454 of the 2700 drawpoint-days draw none. Every day is
 /// credited from its drawpoint's stream (`engine::crediting`): every drawpoint-day has a
 /// grade, every day of a flowing drawpoint its 150 t. Under the bounded per-period
-/// correction, 1450 of the 2700 drawpoint-days had no grade and 1702 were short. The 54
+/// correction, 1450 of the 2700 drawpoint-days had no grade and 1702 were short. The 66
 /// short days are all the central drawpoint's, whose markers weigh 0.77 of its schedule:
 /// at these coarse markers (3.75 m) the superposed flow still passes part of its column
 /// to its neighbours (the corner drawpoints weigh 1.03, the edge ones 0.94–0.96; 0.967 in
-/// all), and there its flow falls below half the schedule over a trailing window at times.
+/// all), and there its flow falls more than the markers' discreteness below the schedule
+/// over a trailing window at times (`crediting::FLOWING_SIGMAS`).
 #[test]
 fn a_daily_schedule_gives_every_drawpoint_day_its_tonnes_and_a_grade() {
     let dps: Vec<(f64, f64, f64)> = (0..9)
@@ -390,6 +391,19 @@ fn a_daily_schedule_gives_every_drawpoint_day_its_tonnes_and_a_grade() {
         "daily scene: {rows} drawpoint-days, {no_marker} drew no marker, {no_grade} have no grade, {} short; marker / scheduled tonnes {:.4}",
         short.len(),
         out.balance.marker_tonnes / out.balance.scheduled_tonnes
+    );
+    let mut per = [(0usize, 0.0f64, 0.0f64); 9];
+    for k in 0..rows {
+        let d = ex.drawpoint[k] as usize;
+        per[d].0 += (ex.status[k] == "short") as usize;
+        per[d].1 += ex.marker_tonnes[k];
+        per[d].2 += ex.scheduled_tonnes[k];
+    }
+    eprintln!(
+        "per drawpoint (short days, marker / scheduled): {:?}",
+        per.iter()
+            .map(|p| (p.0, (p.1 / p.2 * 1000.0).round() / 1000.0))
+            .collect::<Vec<_>>()
     );
     assert_eq!(rows, 2700);
     assert!(
