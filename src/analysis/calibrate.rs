@@ -149,6 +149,9 @@ pub struct CalibrationReport {
     pub n: usize,
     /// Engine runs made.
     pub runs: usize,
+    /// Whether the fit lowered the overall RMSE. A fit that does not is no calibration:
+    /// it is reported, with its profiles, and no `calibrated.toml` is written.
+    pub lowered: bool,
     /// The fitted calibration.
     #[serde(skip)]
     pub calibration: Calibration,
@@ -538,12 +541,15 @@ pub fn calibrate(
         rmse_after: rmse(after.all),
         n: after.all.1,
         runs,
+        lowered: rmse(after.all) < rmse(before.all),
         calibration: cal,
     })
 }
 
-/// Writes `calibration.json` (the report) and `calibrated.toml` (the scenario with the
-/// fitted `[calibration]`, to run again) into `dir`, atomically.
+/// Writes `calibration.json` (the report) and, when the fit lowered the overall RMSE,
+/// `calibrated.toml` (the scenario with the fitted `[calibration]`, to run again) into
+/// `dir`, atomically. A fit that did not lower it leaves no `calibrated.toml` (one from an
+/// earlier calibration into `dir` is removed, so none is mistaken for this one's result).
 pub fn write_calibration(
     dir: &Path,
     report: &CalibrationReport,
@@ -554,6 +560,15 @@ pub fn write_calibration(
         .map_err(|e| CalibrateError::Input(format!("calibration report: {e}")))?;
     crate::output::parquet::write_atomic(&dir.join("calibration.json"), json.as_bytes())
         .map_err(io)?;
+    let toml_path = dir.join("calibrated.toml");
+    if !report.lowered {
+        return match std::fs::remove_file(&toml_path) {
+            Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(CalibrateError::Input(
+                format!("{}: {e}", toml_path.display()),
+            )),
+            _ => Ok(()),
+        };
+    }
     let mut sc = scenario.clone();
     sc.calibration = report.calibration.clone();
     let toml = toml::to_string(&sc)
@@ -563,8 +578,7 @@ pub fn write_calibration(
          # Overall {} RMSE {:.5}% before, {:.5}% after, over {} drawpoint-periods.\n{toml}",
         report.grade, report.rmse_before, report.rmse_after, report.n
     );
-    crate::output::parquet::write_atomic(&dir.join("calibrated.toml"), text.as_bytes())
-        .map_err(io)?;
+    crate::output::parquet::write_atomic(&toml_path, text.as_bytes()).map_err(io)?;
     Ok(())
 }
 

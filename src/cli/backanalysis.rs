@@ -16,6 +16,10 @@ use crate::model::records::load_records;
 use crate::model::{Scenario, Scene};
 use crate::output::charts::{profile_chart, Profile};
 
+/// Exit code of a calibration whose fit did not lower the overall RMSE (1 is invalid
+/// input, 2 any other error).
+pub const CALIBRATION_FAILED: u8 = 3;
+
 /// `caveflow reconcile`.
 #[derive(Debug, Args)]
 pub struct ReconcileArgs {
@@ -267,6 +271,17 @@ pub(super) fn calibrate_cmd(a: CalibrateArgs) -> Result<ExitCode> {
         "overall {} RMSE {:.4}% → {:.4}% over {} drawpoint-periods, {} runs",
         report.grade, report.rmse_before, report.rmse_after, report.n, report.runs
     );
+    if !report.lowered {
+        eprintln!(
+            "calibration failed: the fit does not lower the overall {} RMSE ({:.4}% → {:.4}%), so it is no calibration; no calibrated.toml written. The profiles are in {} and {}",
+            report.grade,
+            report.rmse_before,
+            report.rmse_after,
+            a.out.join("calibration.json").display(),
+            a.out.join("profiles.svg").display()
+        );
+        return Ok(ExitCode::from(CALIBRATION_FAILED));
+    }
     println!("wrote {}", a.out.join("calibrated.toml").display());
     Ok(ExitCode::SUCCESS)
 }

@@ -1,5 +1,6 @@
 //! The command line: clap arguments become a validated scenario, then one of the commands
-//! runs. Exit codes: 0 success, 1 invalid input (every problem listed), 2 any other error.
+//! runs. Exit codes: 0 success, 1 invalid input (every problem listed), 2 any other error,
+//! 3 a calibration whose fit did not lower the error.
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
