@@ -17,8 +17,8 @@
 //! `max(TRAIL_MARKERS` markers' mass, the period's schedule) of scheduled tonnes, its
 //! markers weigh what was scheduled to within their discreteness ([`FLOWING_SIGMAS`]), or
 //! the draw has not yet reached that much. Otherwise it really could not deliver (its IMZ
-//! draws air: its column is exhausted, or a pipe drawn down to it while rilling is off;
-//! or its IMZ is held under uncaved ground and has drained), and it is credited the marker
+//! draws air: its column is drawn out, with the ground around it standing where rilling is
+//! off; or it is held under uncaved ground and has drained), and it is credited the marker
 //! tonnes it drew, `short`, with the reason; so is a drawpoint whose ground has not caved,
 //! which draws nothing. What a period could not deliver is reported as `shortfall_tonnes`
 //! (the running total) and is not credited later. Over a run the credited tonnes are the
@@ -48,10 +48,10 @@ pub const TRAIL_MARKERS: f64 = 60.0;
 /// about √N (the demo's monthly periods of ~250 markers scatter by 0.06 of their schedule,
 /// 1/√250 = 0.063), so a flowing drawpoint falls below 1 − 3/√N in about one window in a
 /// thousand: 0.61 of the schedule at the shortest window (60 markers), 0.81 over a monthly
-/// period of the demo. A drawpoint below it draws air: its column is drawn out, or (rilling
-/// off) the ground around a pipe drawn down to it stands and does not feed it. A fixed half
-/// credited the demo's drawpoints whose pipes reached them the schedule while their markers
-/// weighed 0.61–0.74 of it.
+/// period of the demo. A drawpoint below it draws air: its column is drawn out (and, with
+/// rilling off, the ground around it stands and does not feed it), or it is held under
+/// uncaved ground. A fixed half credited the demo's southeast drawpoints whose columns were
+/// drawn out their schedule while their markers weighed 0.61–0.74 of it.
 pub const FLOWING_SIGMAS: f64 = 3.0;
 
 /// Fewest markers a period's grades are read from. On the mine scene's daily schedule (the

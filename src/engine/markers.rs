@@ -4,9 +4,9 @@
 //! stands for the cube of side s around it at its block's in-situ density, ρ (1 − n0) s³
 //! (the cells of the last sites along an axis run to the grid's face), so the marker field
 //! is as dense as the ground everywhere and its mass adds up to the block model's where the
-//! density is uniform; a block's own mass is exact where s divides it. Stagnant ground is never materialised: a site
-//! becomes a marker (row of [`Markers`]) only when an IMZ engulfs it, and the marker id is
-//! the site index. So stagnant ground costs nothing per increment, and the lattice itself
+//! density is uniform; a block's own mass is exact where s divides it. Stagnant ground is
+//! never materialised: a site becomes a marker (row of [`Markers`]) only when an IMZ
+//! engulfs it, and the marker id is the site index. So stagnant ground costs nothing per increment, and the lattice itself
 //! is the spatial index of the stagnant markers.
 //!
 //! # Motion of a marker at radius a_m in disk i (per IMZ, summed by superposition)

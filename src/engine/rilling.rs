@@ -3,8 +3,8 @@
 //! # Free surface
 //! The top of the caved material, as a height field H over the lattice columns (one
 //! column per marker-lattice site in plan, spacing s): the highest of the moving markers in
-//! the column (their centre + half their height at n1, below) and the in-situ caved ground (the highest flowable
-//! lattice site that no IMZ has engulfed, + s/2). Draw lowers it where an IMZ reaches it,
+//! the column (their centre + half their height at n1, below) and the in-situ caved ground
+//! (the highest flowable lattice site that no IMZ has engulfed, + s/2). Draw lowers it where an IMZ reaches it,
 //! and the marker motion then leaves a surface cone above the drawpoint (summary §3.1).
 //!
 //! # Rilling
@@ -103,17 +103,17 @@ pub fn column(lat: &Lattice, x: f64, y: f64) -> Option<usize> {
 }
 
 /// Where a parcel dropped on a column whose surface is at `h` comes to rest: its centre
-/// half a parcel above the surface (the floor of the lattice for an empty column).
+/// `half` its height above the surface (the floor of the lattice for an empty column).
 #[inline]
 fn landing(lat: &Lattice, h: f64, half: f64) -> f64 {
     h.max(lat.origin[2]) + half
 }
 
 /// Half the height a marker of block `b` and mass `mass` stands for in its column: its
-/// solids at the block's dilated porosity, m / (ρ_s (1 − n1)), over the column's area s². Moving ground is at n1 (the
-/// IMZ's balance), and so is a parcel that rills: stacked s apart, as the lattice holds
-/// them in situ, rilled parcels would lie at n0 and be drawn 1.05–1.15× as heavy as the
-/// schedule late in the demo's draw.
+/// solids at the block's dilated porosity, m / (ρ_s (1 − n1)), over the column's area s².
+/// Moving ground is at n1 (the IMZ's balance), and so is a parcel that rills: stacked s
+/// apart, as the lattice holds them in situ, rilled parcels would lie at n0, and the demo
+/// with rilling on drew 1.05–1.15× its schedule in markers over its last five periods.
 #[inline]
 fn half_height(bm: &BlockModel, b: usize, mass: f64, s: f64) -> f64 {
     0.5 * mass / (bm.density[b] * (1.0 - bm.n1[b]) * s * s)
