@@ -90,8 +90,8 @@
 //!   (`Ground::reach`): ground outside the model or not yet caved cannot be mobilised. A
 //!   disk may still be wider than the ground on one side. Past one of the model's walls
 //!   the marker pass moves the ground by the IMZ's mirror image (`engine::markers`), so
-//!   the disk's flux stays whole in the model; where uncaved ground (or a corner of the
-//!   model) cuts it, the void fills only the flowable share A_f of its area
+//!   the disk's flux stays whole in the model; where uncaved ground cuts it, the void
+//!   fills only the flowable share A_f of its area
 //!   (`Ground::area_fraction`), and the marker pass divides vertical moves by A_f.
 //! - **Unflowable perimeter.** Points in uncaved blocks or outside the model cannot
 //!   dilate; the fraction f of flowable points scales the area that can grow:

@@ -113,9 +113,8 @@ impl BlockModel {
         [0, 1, 2].map(|a| self.origin[a] + self.size[a] * self.dims[a] as f64)
     }
 
-    /// A point beyond one side of the grid's plan bounds reflected back across that side:
-    /// its image in the model's vertical wall. A point beyond two sides (off a corner) is
-    /// left where it is, outside.
+    /// A point beyond the grid's plan bounds reflected back across the sides it is beyond:
+    /// its image in the model's vertical wall, or, off a corner, across both walls.
     #[inline]
     pub fn mirror(&self, p: [f64; 3]) -> [f64; 3] {
         let hi = self.max_corner();
@@ -131,6 +130,7 @@ impl BlockModel {
         match (image(0), image(1)) {
             (Some(x), None) => [x, p[1], p[2]],
             (None, Some(y)) => [p[0], y, p[2]],
+            (Some(x), Some(y)) => [x, y, p[2]],
             _ => p,
         }
     }
