@@ -255,7 +255,7 @@ mod tests {
             motion: &motion_ref,
             grid: &grid,
             ground: None,
-            reach: 0.0,
+            reach: crate::engine::markers::WallReach::default(),
         };
         let mut bm = crate::model::synthetic::UniformBox::castro_isolated()
             .scene()
@@ -322,7 +322,7 @@ mod tests {
             motion: &motion_ref,
             grid: &grid,
             ground: None,
-            reach: 0.0,
+            reach: crate::engine::markers::WallReach::default(),
         };
         let scene = crate::model::synthetic::UniformBox {
             extent: [10.0, 10.0, 6.0],

@@ -365,7 +365,7 @@ mod tests {
             motion: &motion,
             grid: &grid,
             ground: None,
-            reach: 0.0,
+            reach: crate::engine::markers::WallReach::default(),
         };
         // Frustum (R = 10 > w = 2, plug radius 8). At a = 9 (annulus):
         // Δz = −3 × 2 / (π (100 + 80 + 64)) × (1 − (9 − 8)/2) = −6/766.5486 × 0.5

@@ -57,7 +57,7 @@ use cadence::Cadence;
 use crediting::Tally;
 use fragmentation::SizeDist;
 use imz::{DiskMotion, Ground, Imz, ImzGeom, ImzGrid, ImzParams, Mobilised};
-use markers::{Bins, DrawnMarkers, Lattice, Markers, MotionField};
+use markers::{Bins, DrawnMarkers, Lattice, Markers, MotionField, WallReach};
 pub use result::*;
 
 /// MassFlow's bounds of its mass-correction factor: the rows beyond them are counted.
@@ -410,7 +410,7 @@ impl<'a> Engine<'a> {
             motion: &motion,
             grid: &grid,
             ground: Some((&self.scene.blocks, last)),
-            reach: widest(&geoms),
+            reach: WallReach::new(&geoms, &self.scene.blocks),
         })
     }
 
@@ -1362,20 +1362,16 @@ fn level_fields<'f>(
     grids: &'f [ImzGrid],
     ground: (&'f crate::model::BlockModel, i64),
 ) -> Vec<MotionField<'f>> {
+    let reach = WallReach::new(geoms, ground.0);
     (0..grids.len())
         .map(|l| MotionField {
             geoms,
             motion: &motion[l],
             grid: &grids[l],
             ground: Some(ground),
-            reach: widest(geoms),
+            reach: reach.clone(),
         })
         .collect()
-}
-
-/// The widest disk of any IMZ, m (how far from a wall an IMZ's image can reach).
-fn widest(geoms: &[ImzGeom]) -> f64 {
-    geoms.iter().map(ImzGeom::max_radius).fold(0.0, f64::max)
 }
 
 /// Whether an IMZ active at marker row `k`'s level reaches its cell (elsewhere its step
