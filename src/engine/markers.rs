@@ -748,47 +748,38 @@ impl MotionField<'_> {
         if let Some((bm, _)) = self.ground {
             let (lo, hi) = (bm.origin, bm.max_corner());
             let reach = self.reach.at(p[2]);
-            let near =
-                |a: usize, side: usize, wall: f64| (p[a] - wall).abs() <= reach[2 * a + side];
-            for a in 0..2 {
-                for (side, (wall, inside)) in [(lo[a], lo[a] + 1e-9), (hi[a], hi[a] - 1e-9)]
-                    .into_iter()
-                    .enumerate()
-                {
-                    if !near(a, side, wall) {
-                        continue;
-                    }
-                    let (mut q, mut at) = (p, p);
-                    q[a] = 2.0 * wall - p[a];
-                    at[a] = inside;
-                    let (sx, sy) = if a == 0 { (-1.0, 1.0) } else { (1.0, -1.0) };
-                    for &d in self.grid.at(at[0], at[1]) {
-                        if let Some(h) = self.geoms[d as usize].disk_at(q) {
-                            visit(d, sx, sy, h);
-                        }
-                    }
-                }
-            }
-            for (sx, wx) in [(lo[0], lo[0] + 1e-9), (hi[0], hi[0] - 1e-9)]
+            // Per axis, the two walls: (the wall, a point just inside it, its reach index).
+            let walls = |a: usize| {
+                [
+                    (lo[a], lo[a] + 1e-9, 2 * a),
+                    (hi[a], hi[a] - 1e-9, 2 * a + 1),
+                ]
                 .into_iter()
-                .enumerate()
-            {
-                if !near(0, sx, wx.0) {
-                    continue;
+                .filter(move |&(wall, _, w)| (p[a] - wall).abs() <= reach[w])
+            };
+            // The images of the IMZs listed at plan point `at` that hold `q`, plan components
+            // multiplied by (sx, sy).
+            let mut images = |at: [f64; 2], q: [f64; 3], sx: f64, sy: f64| {
+                for &d in self.grid.at(at[0], at[1]) {
+                    if let Some(h) = self.geoms[d as usize].disk_at(q) {
+                        visit(d, sx, sy, h);
+                    }
                 }
-                for (sy, wy) in [(lo[1], lo[1] + 1e-9), (hi[1], hi[1] - 1e-9)]
-                    .into_iter()
-                    .enumerate()
-                {
-                    if !near(1, sy, wy.0) {
-                        continue;
-                    }
-                    let q = [2.0 * wx.0 - p[0], 2.0 * wy.0 - p[1], p[2]];
-                    for &d in self.grid.at(wx.1, wy.1) {
-                        if let Some(h) = self.geoms[d as usize].disk_at(q) {
-                            visit(d, -1.0, -1.0, h);
-                        }
-                    }
+            };
+            for (wall, inside, _) in walls(0) {
+                images([inside, p[1]], [2.0 * wall - p[0], p[1], p[2]], -1.0, 1.0);
+            }
+            for (wall, inside, _) in walls(1) {
+                images([p[0], inside], [p[0], 2.0 * wall - p[1], p[2]], 1.0, -1.0);
+            }
+            for (wx, in_x, _) in walls(0) {
+                for (wy, in_y, _) in walls(1) {
+                    images(
+                        [in_x, in_y],
+                        [2.0 * wx - p[0], 2.0 * wy - p[1], p[2]],
+                        -1.0,
+                        -1.0,
+                    );
                 }
             }
         }

@@ -246,6 +246,7 @@ impl<'a> Engine<'a> {
                 limit: MAX_SITES,
             });
         }
+        let unit_mass = lattice.unit_masses(bm);
         let max = bm.max_corner();
         let diag = ((max[0] - bm.origin[0]).powi(2) + (max[1] - bm.origin[1]).powi(2)).sqrt();
         let params = ImzParams {
@@ -296,8 +297,8 @@ impl<'a> Engine<'a> {
             resolution: res,
             params,
             lattice,
-            unit_mass: lattice.unit_masses(bm),
-            lattice_mass: lattice.block_masses(bm, &lattice.unit_masses(bm)),
+            lattice_mass: lattice.block_masses(bm, &unit_mass),
+            unit_mass,
             engulfed: vec![false; lattice.len()],
             engulfed_mass: vec![0.0; bm.len()],
             imzs,
