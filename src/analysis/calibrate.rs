@@ -11,40 +11,76 @@
 //!
 //! # How
 //! The objective is the sum of squared grade errors S = Σ e² (e = predicted − sampled, the
-//! rows of [`reconcile`](super::reconcile)). The fragment factor of lithology z is judged on
-//! the rows of the drawpoints whose `zone` is z (all rows when no drawpoint names it), so
-//! that one run serves every zone at once:
+//! rows of [`reconcile`](super::reconcile)) over every matched drawpoint-period.
 //!
 //! 1. **coarse**: one run per value of the coarse grid, every fitted zone set to that value;
-//!    each zone takes its own best value;
-//! 2. **refine**: runs at ±8% and ±15% around each zone's best (each run sets every zone
-//!    to its own k-th step), so each zone's profile is sampled finely near its minimum;
+//!    each zone takes the value that minimises S over the rows of the drawpoints whose
+//!    `zone` it is (all rows when no drawpoint names it). This is a starting point only:
+//!    with every zone at one value, a zone's rows also feel its neighbours' factor (a
+//!    drawpoint near a contact draws both lithologies), so when several zones are away from
+//!    1, each zone's coarse best is pulled towards the others'.
+//! 1b. **one zone at a time** (several zones): each zone over the coarse grid with the
+//!    others at their coarse best, K × grid runs; each zone takes its best on all rows.
+//!    This finds the right valley where the first pass has two (on the three-zone truth of
+//!    the tests with records from a run at 0.7 times the fit's h and spacing, Primos' coarse
+//!    best was 0.8 against a truth of 1.3, and the joint step stayed in that valley).
+//! 2. **joint**: the zone factors θ together, by Gauss–Newton on the residuals of all rows
+//!    ([`least_squares`](super::least_squares)). Each iteration runs the centre and every
+//!    zone at θ_k (1 ± h) with the others at the centre (2K + 1 runs in one parallel batch,
+//!    K zones), takes the Jacobian J = ∂e/∂θ from those central differences, and steps to
+//!    the minimum of the linearised S, no factor moving by more than 30% and none leaving
+//!    the coarse grid's range. h is 15%, then 10%: the engine's response is ragged at the
+//!    scale of single markers (a slightly wider IMZ hands a few markers to a neighbour), so
+//!    the differences must span many markers' worth. Up to 3 iterations, fewer when no
+//!    factor moves by 1%. The result is the last step's minimum of the *linearised* S, not
+//!    the best run seen: on a ragged surface the lowest of many runs is the one whose
+//!    markers happened to fall best (on the three-zone truth, picking the best run
+//!    put Urad at 0.720 ± 0.012 against a truth of 0.75; the linearised minimum gives 0.745).
+//!    J's off-diagonal terms are how the zones' influence on one another enters.
 //! 3. **globals** (when asked): n1 then φ factors, each on a grid around 1 with the zones
-//!    fixed, judged on all rows;
-//! 4. a last run at the fitted values gives the error after.
+//!    fixed, judged on all rows; θ̂ from the profile's parabola (below).
+//! 4. a run at the fitted values gives the error after, and a run at finer resolution the
+//!    resolution's part of the uncertainty (below).
 //!
 //! # Uncertainty
-//! Near its minimum each profile is a parabola, S(θ) ≈ S_min + a (θ − θ̂)², fitted by least
-//! squares to the evaluated points within 30% of the best one. As in nonlinear least
-//! squares, a = Σ (∂e/∂θ)² and the residual variance is σ̂² = S_min / (n − 1), so the noise
-//! gives θ̂ a standard error σ̂ / √a. The engine's response is ragged at the scale of single
-//! markers, so the points scatter about the parabola; the vertex's spread under that
-//! scatter (the regression's covariance) is added in quadrature.
+//! **Zones.** With A = JᵀJ at the last iteration and the residuals of the run at θ̂, the
+//! statistical covariance is the larger (on the diagonal) of σ̂² A⁻¹, σ̂² = S / (n − K), and
+//! the cluster-robust covariance with one cluster per drawpoint
+//! ([`least_squares`](super::least_squares): a drawpoint's errors are correlated over its
+//! periods). Their correlation matrix is reported.
 //!
-//! Where the profile has a flat valley rather than a parabola's bottom, the curvature says
-//! too little. So the profile interval is taken too: the evaluated values whose S lies
-//! within χ²₁(95%) = 3.84 σ̂² of the best, widened to the next evaluated value on each side.
-//! The reported SE is the larger of the curvature's and the interval's half-width / 1.96;
-//! the 95% interval covers both. The profile
-//! points themselves are reported too (the error surface around the optimum), so a flat or
-//! two-valleyed profile is seen, not hidden behind one number.
+//! **Resolution.** The records come from ground, not from a run at the fit's resolution,
+//! so the fit also absorbs what the resolution gets wrong. A run at θ̂ with h and the marker
+//! spacing × 2^(−1/2) (2.8 times the markers, twice as many disks) measures it: the
+//! Gauss–Newton step −A⁻¹ Jᵀ (e_finer − e_fit) is how far the factors would move had the
+//! fit been made at the finer resolution. Its size is each factor's `se_resolution`, added
+//! in quadrature to the statistical SE. It is a lower bound of the resolution's error (a
+//! run converged in resolution would move the factors further). The same pair of runs gives
+//! the model's own noise, RMS(e_finer − e_fit)/√2 per row, and the records' noise left
+//! beside it, √(RMSE² − model²): when the model's noise is not below the records', the fit
+//! cannot resolve what the records say, and `calibrate` says so.
+//!
+//! **Globals.** Near its minimum each profile is a parabola, S(θ) ≈ S_min + a (θ − θ̂)²,
+//! fitted by least squares to the evaluated points within 30% of the best one. As in
+//! nonlinear least squares, a = Σ (∂e/∂θ)² and σ̂² = S_min / (n − 1), so the noise gives θ̂ a
+//! standard error σ̂ / √a; the vertex's spread under the points' scatter about the parabola
+//! (the regression's covariance) is added in quadrature. Where the profile has a flat
+//! valley, the profile interval is taken too: the evaluated values whose S lies within
+//! χ²₁(95%) = 3.84 σ̂² of the best, widened to the next evaluated value on each side; the SE
+//! is the larger of the curvature's and the interval's half-width / 1.96.
+//!
+//! Every parameter's profile points are reported, so a flat or two-valleyed surface is
+//! seen, not hidden behind one number: a zone's are its rows' RMSE at the coarse grid and
+//! at every run where only its factor differed from a centre (steps 1b and 2).
 
 use std::collections::BTreeMap;
 use std::path::Path;
 
+use nalgebra::{DMatrix, DVector};
 use polars::prelude::*;
 use rayon::prelude::*;
 
+use super::least_squares::Linearised;
 use super::reconcile::{
     floats, predicted_frame, reconcile, strings, Frames, ReconcileError, Settings,
 };
@@ -89,10 +125,8 @@ pub struct CalibrateConfig {
     pub fit_n1: bool,
     /// Fit a factor on φ.
     pub fit_friction: bool,
-    /// Coarse grid of fragment-size factors.
+    /// Coarse grid of fragment-size factors; its ends bound the joint fit.
     pub coarse: Vec<f64>,
-    /// Relative steps around each zone's coarse best (multipliers).
-    pub refine: Vec<f64>,
     /// Grid of n1 and φ factors.
     pub global: Vec<f64>,
 }
@@ -103,8 +137,7 @@ impl Default for CalibrateConfig {
             zones: Vec::new(),
             fit_n1: false,
             fit_friction: false,
-            coarse: vec![0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0, 1.15, 1.3, 1.5],
-            refine: vec![0.85, 0.92, 1.08, 1.15],
+            coarse: vec![0.4, 0.6, 0.8, 1.0, 1.25, 1.5],
             global: vec![0.9, 0.95, 1.0, 1.05, 1.1],
         }
     }
@@ -119,9 +152,12 @@ pub struct Fitted {
     pub start: f64,
     /// Fitted value θ̂.
     pub value: f64,
-    /// Standard error of θ̂: the larger of the curvature's and the profile interval's (see
-    /// the module docs; NaN when the profile has no minimum).
+    /// Standard error of θ̂ (module docs, "Uncertainty"; NaN when there is no minimum).
     pub se: f64,
+    /// The part of `se` that the resolution gives: how far the factor would move had it
+    /// been fitted at 2^(−1/2) times the marker spacing (zone factors; NaN for the global
+    /// ones). `se` is the statistical SE and this in quadrature.
+    pub se_resolution: f64,
     /// 95% interval: θ̂ ± 1.96 SE and the profile interval, whichever reaches further.
     pub ci95: [f64; 2],
     /// Rows the parameter is judged on.
@@ -141,10 +177,22 @@ pub struct CalibrationReport {
     pub grade: String,
     /// The parameters.
     pub parameters: Vec<Fitted>,
+    /// Correlation matrix of the zone factors, in the order of their parameters.
+    pub correlation: Vec<Vec<f64>>,
     /// Overall RMSE before (at the scenario's own calibration).
     pub rmse_before: f64,
     /// Overall RMSE after (at the fitted values).
     pub rmse_after: f64,
+    /// The model's own noise: the RMS change of a row's predicted grade between the fit's
+    /// markers and 2^(−1/2) finer ones, over √2 (an upper bound: it holds the resolution's
+    /// bias too).
+    pub model_noise: f64,
+    /// The records' noise left when the model's is taken out of the RMSE after:
+    /// √(RMSE² − model_noise²).
+    pub records_noise: f64,
+    /// Whether the model's noise at this resolution is below the records' (otherwise the
+    /// fit cannot resolve what the records say: fit at a finer resolution).
+    pub resolution_adequate: bool,
     /// Rows compared.
     pub n: usize,
     /// Engine runs made.
@@ -162,11 +210,13 @@ const BRACKET: f64 = 1.3;
 /// The 95% point of χ² with one degree of freedom.
 const CHI2_95: f64 = 3.84;
 
-/// Errors of one run: Σ e² and n per zone and overall.
+/// Errors of one run: Σ e² and n per zone and overall, and the error of every matched row
+/// (keyed by drawpoint and period).
 #[derive(Debug, Clone)]
 struct Eval {
     zones: BTreeMap<String, (f64, usize)>,
     all: (f64, usize),
+    rows: BTreeMap<(String, i64), f64>,
 }
 
 impl Eval {
@@ -201,11 +251,24 @@ pub struct Problem<'a> {
 impl Problem<'_> {
     /// Runs the engine with `cal` and reconciles it.
     fn eval(&self, cal: &Calibration) -> Result<Eval, CalibrateError> {
+        self.eval_at(cal, 1.0)
+    }
+
+    /// [`Problem::eval`] with h and the marker spacing `finer` times the ones the scene
+    /// resolves to (the increment and `max_marker_move` as resolved).
+    fn eval_at(&self, cal: &Calibration, finer: f64) -> Result<Eval, CalibrateError> {
         let mut scene = self.scene.clone();
         cal.apply(&mut scene.blocks)
             .map_err(CalibrateError::Apply)?;
         let mut sc = self.scenario.clone();
         sc.calibration = cal.clone();
+        if finer != 1.0 {
+            let r = crate::engine::resolution::resolve(&scene, &sc);
+            sc.resolution.layer_thickness = Some(finer * r.layer_thickness);
+            sc.resolution.marker_spacing = Some(finer * r.marker_spacing);
+            sc.resolution.draw_increment = Some(r.draw_increment);
+            sc.resolution.max_marker_move = Some(r.max_marker_move);
+        }
         let out = Engine::new(&scene, &sc)
             .map_err(|source| CalibrateError::Engine {
                 calibration: describe(cal),
@@ -243,7 +306,14 @@ impl Problem<'_> {
             Some(n) => sse(n, r.overall_rmse(&self.grade)),
             None => (0.0, 0),
         };
-        Ok(Eval { zones, all })
+        let period = r.rows.column("period")?.cast(&DataType::Int64)?;
+        let rows = strings(&r.rows, "drawpoint")
+            .into_iter()
+            .zip(period.i64()?.iter())
+            .zip(floats(&r.rows, "error"))
+            .filter_map(|((d, t), e)| Some(((d, t?), e)).filter(|_| e.is_finite()))
+            .collect();
+        Ok(Eval { zones, all, rows })
     }
 
     fn eval_all(&self, cals: &[Calibration]) -> Result<Vec<Eval>, CalibrateError> {
@@ -382,11 +452,13 @@ pub fn calibrate(
     let first: Vec<Calibration> = std::iter::once(start.clone())
         .chain(coarse.iter().filter(|c| **c != start).cloned())
         .collect();
+    // At most: the joint fit's every iteration, and the final pair of runs.
     let total = first.len()
-        + usize::from(!cfg.zones.is_empty()) * cfg.refine.len()
+        + usize::from(cfg.zones.len() > 1) * (1 + cfg.zones.len() * cfg.coarse.len())
+        + usize::from(!cfg.zones.is_empty()) * MAX_ITERATIONS * runs_per_iteration(cfg.zones.len())
         + usize::from(cfg.fit_n1) * cfg.global.len()
         + usize::from(cfg.fit_friction) * cfg.global.len()
-        + 1;
+        + 2;
     let mut runs = 0;
     let mut tick = |k: usize, runs: &mut usize| {
         *runs += k;
@@ -397,6 +469,7 @@ pub fn calibrate(
     let before = first_evals[0].clone();
     let mut cal = start.clone();
     let mut profiles: BTreeMap<String, Profile> = BTreeMap::new();
+    let mut joint_fit: Option<Joint> = None;
     let start_of = |z: &str| start.frag_factor.get(z).copied().unwrap_or(1.0);
 
     if !cfg.zones.is_empty() {
@@ -411,31 +484,89 @@ pub fn calibrate(
                 prof.push((*f, e.of(zone_rows[z].as_deref())));
             }
         }
-        let best = |z: &str, profiles: &BTreeMap<String, Profile>| {
-            argmin(&profiles[&format!("frag_factor.{z}")])
+        let best = |z: &str| argmin(&profiles[&format!("frag_factor.{z}")]);
+        let mut theta: Vec<f64> = cfg.zones.iter().map(|z| best(z)).collect();
+        let bounds = cfg
+            .coarse
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &f| {
+                (l.min(f), h.max(f))
+            });
+        let at = |t: &[f64]| {
+            zones_at(&start, &cfg.zones, |z| {
+                t[cfg.zones.iter().position(|q| q == z).unwrap()]
+            })
         };
-        // 2. Refine around each zone's own best.
-        let centre: BTreeMap<String, f64> = cfg
-            .zones
+        let mut seen: Vec<(Vec<f64>, Eval)> = first
             .iter()
-            .map(|z| (z.clone(), best(z, &profiles)))
+            .zip(&first_evals)
+            .map(|(c, e)| {
+                let t = cfg
+                    .zones
+                    .iter()
+                    .map(|z| c.frag_factor.get(z).copied().unwrap_or(1.0));
+                (t.collect(), e.clone())
+            })
             .collect();
-        let cands: Vec<Calibration> = cfg
-            .refine
-            .iter()
-            .map(|&m| zones_at(&start, &cfg.zones, |z| centre[z] * m))
-            .collect();
-        let evals = p.eval_all(&cands)?;
-        tick(cands.len(), &mut runs);
-        for z in &cfg.zones {
+        // Where a zone's factor was varied alone: its profile (below) is the runs on those
+        // axes.
+        let mut centres: Vec<Vec<f64>> = Vec::new();
+        // 1b. Several zones: each zone over the grid with the others at their coarse best,
+        // each taking its best on all rows (module docs).
+        if cfg.zones.len() > 1 {
+            let cands: Vec<Vec<f64>> = std::iter::once(theta.clone())
+                .chain((0..cfg.zones.len()).flat_map(|k| {
+                    let theta = &theta;
+                    cfg.coarse
+                        .iter()
+                        .filter(move |&&f| f != theta[k])
+                        .map(move |&f| {
+                            let mut t = theta.clone();
+                            t[k] = f;
+                            t
+                        })
+                }))
+                .filter(|t| !seen.iter().any(|(q, _)| q == t))
+                .collect();
+            let evals = p.eval_all(&cands.iter().map(|t| at(t)).collect::<Vec<_>>())?;
+            tick(cands.len(), &mut runs);
+            seen.extend(cands.into_iter().zip(evals));
+            let centre = theta.clone();
+            centres.push(centre.clone());
+            for (k, t) in theta.iter_mut().enumerate() {
+                let on_axis = |q: &[f64]| (0..q.len()).all(|j| j == k || q[j] == centre[j]);
+                if let Some((q, _)) = seen
+                    .iter()
+                    .filter(|(q, _)| on_axis(q))
+                    .min_by(|a, b| rmse(a.1.all).total_cmp(&rmse(b.1.all)))
+                {
+                    *t = q[k];
+                }
+            }
+        }
+        // 2. The zones jointly, from there.
+        let fit = joint(p, &start, &cfg.zones, bounds, theta, seen, &mut |k| {
+            tick(k, &mut runs)
+        })?;
+        centres.extend(fit.centres.iter().cloned());
+        for (k, z) in cfg.zones.iter().enumerate() {
             let prof = profiles
                 .get_mut(&format!("frag_factor.{z}"))
                 .expect("coarse made it");
-            for (m, e) in cfg.refine.iter().zip(&evals) {
-                prof.push((centre[z] * m, e.of(zone_rows[z].as_deref())));
-            }
-            cal.frag_factor.insert(z.clone(), best(z, &profiles));
+            let on_axis = |t: &[f64]| {
+                centres
+                    .iter()
+                    .any(|c| (0..t.len()).all(|j| j == k || t[j] == c[j]))
+            };
+            prof.extend(
+                fit.points
+                    .iter()
+                    .filter(|(t, _)| on_axis(t))
+                    .map(|(t, e)| (t[k], e.of(zone_rows[z].as_deref()))),
+            );
+            cal.frag_factor.insert(z.clone(), fit.theta[k]);
         }
+        joint_fit = Some(fit);
     }
 
     // 3. Globals, zones fixed.
@@ -470,79 +601,343 @@ pub fn calibrate(
         profiles.insert(name.to_string(), prof);
     }
 
-    // Sub-grid optimum and SE of each parameter from its profile.
-    let mut parameters = Vec::new();
-    for (name, prof) in &mut profiles {
-        prof.sort_by(|a, b| a.0.total_cmp(&b.0));
-        prof.dedup_by(|a, b| (a.0 - b.0).abs() < 1e-12);
-        let best = argmin(prof);
-        // Bracket: within 30% of the best point (at least its two neighbours).
-        let at = prof.iter().position(|q| q.0 == best).unwrap_or(0);
-        let lo = prof[at.saturating_sub(1)].0.min(best / BRACKET);
-        let hi = prof[(at + 1).min(prof.len() - 1)].0.max(best * BRACKET);
-        let (value, se) = match parabola(prof, (lo, hi)) {
-            Some((v, se)) => (v, se),
-            None => (best, f64::NAN),
-        };
-        // The profile interval: the evaluated values whose S is within χ²₁(95%) = 3.84 of
-        // the best in units of σ̂², widened to the next evaluated value on each side
-        // (the crossing lies somewhere between them).
-        let (s_best, n) = prof[at].1;
-        let limit = s_best * (1.0 + CHI2_95 / n.saturating_sub(1).max(1) as f64);
-        let inside: Vec<usize> = (0..prof.len()).filter(|&k| prof[k].1 .0 <= limit).collect();
-        let lo_k = inside.first().map_or(at, |&k| k.saturating_sub(1));
-        let hi_k = inside.last().map_or(at, |&k| (k + 1).min(prof.len() - 1));
-        let (p_lo, p_hi) = (prof[lo_k].0, prof[hi_k].0);
-        let se = se.max((p_hi - p_lo) / (2.0 * 1.96));
-        let ci95 = [(value - 1.96 * se).min(p_lo), (value + 1.96 * se).max(p_hi)];
-        let (start_value, slot) = if let Some(z) = name.strip_prefix("frag_factor.") {
-            (start_of(z), cal.frag_factor.get_mut(z))
-        } else if name == "n1_factor" {
-            (start.n1_factor, Some(&mut cal.n1_factor))
-        } else {
-            (start.friction_factor, Some(&mut cal.friction_factor))
-        };
-        if let Some(slot) = slot {
-            *slot = value;
-        }
-        parameters.push(Fitted {
-            name: name.clone(),
-            start: start_value,
-            value,
-            se,
-            ci95,
-            n: prof.first().map_or(0, |q| q.1 .1),
-            profile: prof.iter().map(|&(t, e)| [t, rmse(e)]).collect(),
-            rmse_before: f64::NAN,
-            rmse_after: f64::NAN,
-        });
-    }
-
-    // 4. The fitted values, run once more.
-    let after = p.eval(&cal)?;
-    tick(1, &mut runs);
-    for f in &mut parameters {
-        let zone = f
-            .name
-            .strip_prefix("frag_factor.")
-            .and_then(|z| zone_rows.get(z).cloned().flatten());
-        f.rmse_before = rmse(before.of(zone.as_deref()));
-        f.rmse_after = rmse(after.of(zone.as_deref()));
-    }
+    // 4. The fitted values, run once more, and once more at finer markers (module docs,
+    // "Resolution").
+    let finals = [(&cal, 1.0), (&cal, CHECK_RESOLUTION)]
+        .par_iter()
+        .map(|&(c, m)| p.eval_at(c, m))
+        .collect::<Result<Vec<_>, _>>()?;
+    tick(finals.len(), &mut runs);
+    let (after, finer) = (&finals[0], &finals[1]);
     if after.all.1 == 0 {
         return Err(CalibrateError::Input(
             "no record matched a prediction: check drawpoint names and periods".into(),
         ));
     }
+    let diffs: Vec<f64> = after
+        .rows
+        .iter()
+        .filter_map(|(k, e)| finer.rows.get(k).map(|f| e - f))
+        .collect();
+    let model_noise = if diffs.is_empty() {
+        f64::NAN
+    } else {
+        (diffs.iter().map(|d| d * d).sum::<f64>() / (2.0 * diffs.len() as f64)).sqrt()
+    };
+    let records_noise = (rmse(after.all).powi(2) - model_noise.powi(2))
+        .max(0.0)
+        .sqrt();
+    let shift = joint_fit
+        .as_ref()
+        .and_then(|f| f.resolution_shift(after, finer));
+
+    let mut parameters = Vec::new();
+    for (name, prof) in &mut profiles {
+        prof.sort_by(|a, b| a.0.total_cmp(&b.0));
+        prof.dedup_by(|a, b| (a.0 - b.0).abs() < 1e-12);
+        let zone = name.strip_prefix("frag_factor.");
+        let (start_value, value, se, se_resolution, ci95) = match zone {
+            Some(z) => {
+                let fit = joint_fit.as_ref().expect("zones are fitted jointly");
+                let k = cfg
+                    .zones
+                    .iter()
+                    .position(|q| q == z)
+                    .expect("a fitted zone");
+                let value = fit.theta[k];
+                let res = shift.as_ref().map_or(f64::NAN, |d| d[k].abs());
+                let se = fit
+                    .se(after, k)
+                    .hypot(if res.is_finite() { res } else { 0.0 });
+                (
+                    start_of(z),
+                    value,
+                    se,
+                    res,
+                    [value - 1.96 * se, value + 1.96 * se],
+                )
+            }
+            None => {
+                let (value, se, ci95) = profile_fit(prof);
+                let slot = if name == "n1_factor" {
+                    (start.n1_factor, &mut cal.n1_factor)
+                } else {
+                    (start.friction_factor, &mut cal.friction_factor)
+                };
+                *slot.1 = value;
+                (slot.0, value, se, f64::NAN, ci95)
+            }
+        };
+        let rows = zone.and_then(|z| zone_rows.get(z).cloned().flatten());
+        parameters.push(Fitted {
+            name: name.clone(),
+            start: start_value,
+            value,
+            se,
+            se_resolution,
+            ci95,
+            n: prof.first().map_or(0, |q| q.1 .1),
+            profile: prof.iter().map(|&(t, e)| [t, rmse(e)]).collect(),
+            rmse_before: rmse(before.of(rows.as_deref())),
+            rmse_after: rmse(after.of(rows.as_deref())),
+        });
+    }
+    let correlation = joint_fit
+        .as_ref()
+        .map(|f| f.correlation(after))
+        .unwrap_or_default();
     Ok(CalibrationReport {
         grade: p.grade.clone(),
         parameters,
+        correlation,
         rmse_before: rmse(before.all),
         rmse_after: rmse(after.all),
+        model_noise,
+        records_noise,
+        resolution_adequate: model_noise < records_noise,
         n: after.all.1,
         runs,
         lowered: rmse(after.all) < rmse(before.all),
         calibration: cal,
+    })
+}
+
+/// A global factor's θ̂, SE and 95% interval from its one-dimensional profile (module docs,
+/// "Uncertainty"): the parabola through the points within 30% of the best, and the
+/// profile interval.
+fn profile_fit(prof: &Profile) -> (f64, f64, [f64; 2]) {
+    let best = argmin(prof);
+    // Bracket: within 30% of the best point (at least its two neighbours).
+    let at = prof.iter().position(|q| q.0 == best).unwrap_or(0);
+    let lo = prof[at.saturating_sub(1)].0.min(best / BRACKET);
+    let hi = prof[(at + 1).min(prof.len() - 1)].0.max(best * BRACKET);
+    let (value, se) = parabola(prof, (lo, hi)).unwrap_or((best, f64::NAN));
+    // The profile interval: the evaluated values whose S is within χ²₁(95%) = 3.84 of the
+    // best in units of σ̂², widened to the next evaluated value on each side (the crossing
+    // lies somewhere between them).
+    let (s_best, n) = prof[at].1;
+    let limit = s_best * (1.0 + CHI2_95 / n.saturating_sub(1).max(1) as f64);
+    let inside: Vec<usize> = (0..prof.len()).filter(|&k| prof[k].1 .0 <= limit).collect();
+    let lo_k = inside.first().map_or(at, |&k| k.saturating_sub(1));
+    let hi_k = inside.last().map_or(at, |&k| (k + 1).min(prof.len() - 1));
+    let (p_lo, p_hi) = (prof[lo_k].0, prof[hi_k].0);
+    let se = se.max((p_hi - p_lo) / (2.0 * 1.96));
+    (
+        value,
+        se,
+        [(value - 1.96 * se).min(p_lo), (value + 1.96 * se).max(p_hi)],
+    )
+}
+
+/// Relative steps of the joint fit's central differences, by iteration (the last one
+/// repeats): the engine's response is ragged at the scale of single markers, so a step
+/// must move the IMZs by much more than a marker's worth.
+const FD_STEPS: [f64; 2] = [0.15, 0.1];
+/// Iterations of the joint fit at most.
+const MAX_ITERATIONS: usize = 3;
+/// Runs per iteration of the joint fit: the centre and two probes per zone.
+fn runs_per_iteration(zones: usize) -> usize {
+    2 * zones + 1
+}
+/// Largest relative change of a factor in one step (a trust region for a Jacobian measured
+/// on a ragged response).
+const TRUST: f64 = 0.3;
+/// The joint fit stops when no factor changes by more than this share in an iteration.
+const CONVERGED: f64 = 0.01;
+/// h and the marker spacing, as multiples of the fit's, of the run that checks the
+/// resolution: 2^(−1/2), 2.8 times the markers (module docs, "Resolution").
+const CHECK_RESOLUTION: f64 = std::f64::consts::FRAC_1_SQRT_2;
+
+/// The joint fit of every zone's factor (module docs, step 2).
+struct Joint {
+    /// Fitted factors, in the order of the zones.
+    theta: Vec<f64>,
+    /// The residuals and Jacobian of the last iteration, keyed rows.
+    lin: Linearised,
+    /// The rows of `lin`.
+    keys: Vec<(String, i64)>,
+    /// Every evaluated point: factors and errors.
+    points: Vec<(Vec<f64>, Eval)>,
+    /// The centre of every iteration.
+    centres: Vec<Vec<f64>>,
+}
+
+impl Joint {
+    /// The residuals at `at` over `lin`'s rows (0 where `at` has none).
+    fn residuals(&self, at: &Eval) -> DVector<f64> {
+        DVector::from_iterator(
+            self.keys.len(),
+            self.keys
+                .iter()
+                .map(|k| at.rows.get(k).copied().unwrap_or(0.0)),
+        )
+    }
+
+    /// Covariance at the fitted factors (residuals of the run `at` them): the larger of the
+    /// plain and the cluster-robust variance (`least_squares`), element by element on the
+    /// diagonal; the plain one off it.
+    fn covariance(&self, at: &Eval) -> Option<DMatrix<f64>> {
+        let (plain, robust) = self.lin.covariance(&self.residuals(at))?;
+        let mut c = plain;
+        for k in 0..c.nrows() {
+            c[(k, k)] = c[(k, k)].max(robust[(k, k)]);
+        }
+        Some(c)
+    }
+
+    fn se(&self, at: &Eval, k: usize) -> f64 {
+        self.covariance(at).map_or(f64::NAN, |c| c[(k, k)].sqrt())
+    }
+
+    /// How far the factors would move had the fit been made at the finer markers of the run
+    /// `finer`: the Gauss–Newton step −A⁻¹ Jᵀ (e_finer − e_fit) of the change in the
+    /// predictions, on this fit's Jacobian (module docs, "Resolution").
+    fn resolution_shift(&self, fit: &Eval, finer: &Eval) -> Option<DVector<f64>> {
+        let d = DVector::from_iterator(
+            self.keys.len(),
+            self.keys
+                .iter()
+                .map(|k| match (finer.rows.get(k), fit.rows.get(k)) {
+                    (Some(a), Some(b)) => a - b,
+                    _ => 0.0,
+                }),
+        );
+        Some(-self.lin.inverse_normal()? * self.lin.j.transpose() * d)
+    }
+
+    /// Correlation matrix of the factors.
+    fn correlation(&self, at: &Eval) -> Vec<Vec<f64>> {
+        let Some(c) = self.covariance(at) else {
+            return Vec::new();
+        };
+        let n = c.nrows();
+        (0..n)
+            .map(|i| {
+                (0..n)
+                    .map(|j| c[(i, j)] / (c[(i, i)] * c[(j, j)]).sqrt())
+                    .collect()
+            })
+            .collect()
+    }
+}
+
+/// Points within this share of the centre on every factor make the regression.
+const WINDOW: f64 = 0.2;
+
+/// The residuals and Jacobian at `centre` from every evaluated point within [`WINDOW`] of
+/// it: per row, the least-squares plane e = a + J (θ − centre) through those points
+/// (module docs, step 2). None when the points do not span every factor.
+fn regression(
+    points: &[(Vec<f64>, Eval)],
+    centre: &[f64],
+) -> Option<(Linearised, Vec<(String, i64)>)> {
+    let near: Vec<&(Vec<f64>, Eval)> = points
+        .iter()
+        .filter(|(t, _)| {
+            t.iter()
+                .zip(centre)
+                .all(|(a, c)| (a - c).abs() <= WINDOW * c * (1.0 + 1e-9))
+        })
+        .collect();
+    let k = centre.len();
+    if near.len() <= k {
+        return None;
+    }
+    let keys: Vec<(String, i64)> = near[0]
+        .1
+        .rows
+        .keys()
+        .filter(|key| near.iter().all(|(_, e)| e.rows.contains_key(*key)))
+        .cloned()
+        .collect();
+    let x = DMatrix::from_fn(near.len(), k + 1, |p, c| {
+        if c == 0 {
+            1.0
+        } else {
+            near[p].0[c - 1] - centre[c - 1]
+        }
+    });
+    // Coefficients of every row at once: (XᵀX)⁻¹ Xᵀ E, E one column per row.
+    let solve = (x.transpose() * &x).try_inverse()? * x.transpose();
+    let e = DMatrix::from_fn(near.len(), keys.len(), |p, r| near[p].1.rows[&keys[r]]);
+    let coef = solve * e;
+    let mut names: Vec<&str> = keys.iter().map(|q| q.0.as_str()).collect();
+    names.sort_unstable();
+    names.dedup();
+    let lin = Linearised {
+        e: DVector::from_iterator(keys.len(), coef.row(0).iter().copied()),
+        j: DMatrix::from_fn(keys.len(), k, |r, c| coef[(c + 1, r)]),
+        cluster: keys
+            .iter()
+            .map(|q| names.binary_search(&q.0.as_str()).expect("listed"))
+            .collect(),
+    };
+    Some((lin, keys))
+}
+
+/// Fits the zones' factors together (module docs, step 2), from `theta`, each factor kept
+/// within `bounds`; `points` are the runs already made (factors and errors).
+fn joint(
+    p: &Problem,
+    start: &Calibration,
+    zones: &[String],
+    bounds: (f64, f64),
+    mut theta: Vec<f64>,
+    mut points: Vec<(Vec<f64>, Eval)>,
+    tick: &mut dyn FnMut(usize),
+) -> Result<Joint, CalibrateError> {
+    let at = |t: &[f64]| {
+        zones_at(start, zones, |z| {
+            t[zones.iter().position(|q| q == z).unwrap()]
+        })
+    };
+    let mut last = None;
+    let mut centres = Vec::new();
+    for it in 0..MAX_ITERATIONS {
+        centres.push(theta.clone());
+        // The centre, and each zone at θ_k (1 ± h) with the others at the centre.
+        let h = FD_STEPS[it.min(FD_STEPS.len() - 1)];
+        let batch: Vec<Vec<f64>> = std::iter::once(theta.clone())
+            .chain((0..zones.len()).flat_map(|k| {
+                [1.0 - h, 1.0 + h].map(|m| {
+                    let mut t = theta.clone();
+                    t[k] *= m;
+                    t
+                })
+            }))
+            .collect();
+        let evals = p.eval_all(&batch.iter().map(|t| at(t)).collect::<Vec<_>>())?;
+        tick(batch.len());
+        points.extend(batch.into_iter().zip(evals));
+        let Some(lin) = regression(&points, &theta) else {
+            break;
+        };
+        // The Gauss–Newton step, within the trust region and the grid.
+        let step = lin.0.step(0.0);
+        last = Some(lin);
+        let Some(d) = step else { break };
+        let next: Vec<f64> = theta
+            .iter()
+            .zip(d.iter())
+            .map(|(&t, &d)| (t + d.clamp(-TRUST * t, TRUST * t)).clamp(bounds.0, bounds.1))
+            .collect();
+        let moved = next
+            .iter()
+            .zip(&theta)
+            .map(|(a, b)| ((a - b) / b).abs())
+            .fold(0.0, f64::max);
+        theta = next;
+        if moved < CONVERGED {
+            break;
+        }
+    }
+    let (lin, keys) = last.expect("at least one iteration");
+    Ok(Joint {
+        theta,
+        lin,
+        keys,
+        points,
+        centres,
     })
 }
 

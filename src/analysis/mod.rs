@@ -10,7 +10,9 @@
 //!   and error statistics per drawpoint, zone and overall;
 //! - [`report`]: the reconciliation as one self-contained HTML page with inline SVG charts;
 //! - [`calibrate`]: fit fragment-size, n1 and φ factors to production records by running
-//!   the engine many times in parallel.
+//!   the engine many times in parallel;
+//! - [`least_squares`]: the Levenberg–Marquardt step and the covariance of `calibrate`'s
+//!   joint fit of several zones.
 //!
 //! This layer sits above [`output`](crate::output): it runs the engine and writes through the
 //! output layer's writers. reconcile, report and calibrate use polars, behind the default
@@ -18,6 +20,7 @@
 
 #[cfg(feature = "analysis")]
 pub mod calibrate;
+pub mod least_squares;
 #[cfg(feature = "analysis")]
 pub mod reconcile;
 pub mod records;

@@ -262,15 +262,43 @@ pub(super) fn calibrate_cmd(a: CalibrateArgs) -> Result<ExitCode> {
         ),
     )?;
     for f in &report.parameters {
+        let res = if f.se_resolution.is_finite() {
+            format!(", of which resolution {:.3}", f.se_resolution)
+        } else {
+            String::new()
+        };
         println!(
-            "{}: {:.3} → {:.3} ± {:.3} (95%: {:.3}–{:.3}); RMSE of its {} rows {:.4}% → {:.4}%",
+            "{}: {:.3} → {:.3} ± {:.3}{res} (95%: {:.3}–{:.3}); RMSE of its {} rows {:.4}% → {:.4}%",
             f.name, f.start, f.value, f.se, f.ci95[0], f.ci95[1], f.n, f.rmse_before, f.rmse_after
         );
     }
     println!(
-        "overall {} RMSE {:.4}% → {:.4}% over {} drawpoint-periods, {} runs",
-        report.grade, report.rmse_before, report.rmse_after, report.n, report.runs
+        "overall {} RMSE {:.4}% → {:.4}% over {} drawpoint-periods, {} runs; the model's own noise {:.4}%, the records' {:.4}%",
+        report.grade,
+        report.rmse_before,
+        report.rmse_after,
+        report.n,
+        report.runs,
+        report.model_noise,
+        report.records_noise
     );
+    if !report.resolution_adequate {
+        eprintln!(
+            "warning: the model's own noise at this resolution ({:.4}% {}) is not below the records' ({:.4}%): the fit cannot resolve what the records say; calibrate at a finer resolution (resolution.marker_spacing)",
+            report.model_noise, report.grade, report.records_noise
+        );
+    }
+    for f in &report.parameters {
+        let stat = (f.se * f.se - f.se_resolution * f.se_resolution)
+            .max(0.0)
+            .sqrt();
+        if f.se_resolution > stat {
+            eprintln!(
+                "warning: {} moves by {:.3} between this resolution and a finer one, more than its statistical SE {stat:.3}: its value is limited by the resolution",
+                f.name, f.se_resolution
+            );
+        }
+    }
     if !report.lowered {
         eprintln!(
             "calibration failed: the fit does not lower the overall {} RMSE ({:.4}% → {:.4}%), so it is no calibration; no calibrated.toml written. The profiles are in {} and {}",

@@ -46,7 +46,11 @@ fn reduced() -> (Scene, Scenario) {
 /// Synthetic records (`analysis::records`, as `data/records.csv` is made): the run with
 /// `truth`, Mo × (1 + ε). Also returns the RMS of the noise actually added (the error a
 /// perfect model would still show).
-fn synthetic(scene: &Scene, sc: &Scenario, truth: &Calibration) -> (ProductionRecords, f64) {
+fn synthetic(
+    scene: &Scene,
+    sc: &Scenario,
+    truth: &Calibration,
+) -> (ProductionRecords, f64) {
     let mut s = scene.clone();
     truth.apply(&mut s.blocks).unwrap();
     let out = Engine::new(&s, sc).unwrap().run(&mut |_, _| {});
@@ -86,21 +90,18 @@ fn fit(
 /// Calibration finds the hidden factor.
 ///
 /// Tolerance: the fitted factor θ̂ scatters about the truth by the standard error SE the
-/// calibration reports (`calibrate` module docs). SE has two parts: the sampling noise
-/// (σ̂ / √a: σ̂ estimates the noise, a is how fast the squared error grows away from the
-/// optimum) and the raggedness of the engine's response to the factor, seen as the profile
-/// points' scatter about the fitted parabola. |θ̂ − θ*| ≤ 3 SE holds with 99.7% probability
-/// for a well-behaved estimate. The test also requires SE < 0.1 (the records must pin the
-/// factor to better than ±15% of its value, or the check is empty).
+/// calibration reports (`calibrate` module docs: the statistical SE of the Gauss–Newton fit,
+/// and the resolution's part in quadrature). |θ̂ − θ*| ≤ 2 SE holds with 95% probability for
+/// a well-behaved estimate. The test also requires SE < 0.1 (the records must pin the
+/// factor to better than ±15% of its value, or the check is empty). Measured: 0.667 ±
+/// 0.009 against 0.652.
 ///
 /// RMSE: at the truth itself a run reproduces the records to the noise alone; any other
 /// factor also moves single markers between drawpoints, and at this resolution that
-/// scatters one run's Urad RMSE by about 0.014% Mo RMS (the profile's runs at 0.648, the
-/// fitted 0.669 and 0.69: 0.0189, 0.0253 and 0.0179% against 0.0123% of noise). So the
-/// Urad RMSE "after" is read as the median over the runs within 2 SE of the fit (the fitted
-/// run among them), must be at least 10% below the stated fragmentation's, and within
-/// twice the noise. That the model's own scatter exceeds the records' noise at the
-/// calibration's resolution is the open problem of calibrating several zones at once.
+/// scatters one run's Urad RMSE (the model's own noise, 0.0083% Mo, against 0.0123% of
+/// records' noise). So the Urad RMSE "after" is read as the median over the runs within
+/// 2 SE of the fit (the fitted run among them), must be at least 10% below the stated
+/// fragmentation's, and within twice the noise. Measured: 0.0213% → 0.0146%.
 #[test]
 fn calibrate_recovers_the_hidden_fragment_factor_and_cuts_rmse() {
     let (scene, sc) = reduced();
@@ -118,7 +119,7 @@ fn calibrate_recovers_the_hidden_fragment_factor_and_cuts_rmse() {
     assert_eq!(f.name, "frag_factor.urad");
     assert!(f.se.is_finite() && f.se < 0.1, "SE {}", f.se);
     assert!(
-        (f.value - TRUE_FACTOR).abs() <= 3.0 * f.se,
+        (f.value - TRUE_FACTOR).abs() <= 2.0 * f.se,
         "fitted {} ± {} against the hidden {TRUE_FACTOR}",
         f.value,
         f.se
@@ -243,8 +244,8 @@ fn calibrate_fits_n1_and_friction_and_writes_a_scenario_that_loads() {
         assert_eq!(f.profile.len(), 3, "{f:?}");
         assert!((0.95..=1.05).contains(&f.value), "{f:?}");
     }
-    // 1 before + 3 + 3 + 1 after.
-    assert_eq!(report.runs, 8);
+    // 1 before + 3 + 3 + 2 after (the fitted values, and the resolution check).
+    assert_eq!(report.runs, 9);
     let dir = tempfile::tempdir().unwrap();
     caveflow::analysis::calibrate::write_calibration(dir.path(), &report, &sc).unwrap();
     let back = Scenario::load(&dir.path().join("calibrated.toml"), &[]).unwrap();
@@ -305,4 +306,79 @@ fn a_calibration_that_does_not_lower_the_error_is_a_reported_failure() {
     assert_eq!(report["rmse_before"], report["rmse_after"]);
     assert!(out.join("profiles.svg").exists());
     assert!(!out.join("calibrated.toml").exists());
+}
+
+/// The truth of the joint calibration tests: three zones, two of them away from 1 in
+/// opposite directions, as in the case that separate per-zone fits got wrong (Urad 0.75,
+/// Primos 1.3, contact 1; the contact drawpoints draw both lithologies).
+fn three_zones() -> (Calibration, CalibrateConfig) {
+    let mut truth = Calibration::default();
+    for (z, f) in [("urad", 0.75), ("primos", 1.3), ("contact", 1.0)] {
+        truth.frag_factor.insert(z.into(), f);
+    }
+    let cfg = CalibrateConfig {
+        zones: vec!["urad".into(), "primos".into(), "contact".into()],
+        ..CalibrateConfig::default()
+    };
+    (truth, cfg)
+}
+
+/// A joint fit against its truth: every factor within two of its standard errors of the
+/// truth (|θ̂ − θ*| ≤ 2 SE holds with 95% probability for a well-behaved estimate; the SE
+/// includes the resolution's part), each SE below 0.1 (the records must pin every factor,
+/// or the check is empty), and the overall RMSE lowered.
+fn assert_recovers(report: &CalibrationReport, truth: &Calibration) {
+    for f in &report.parameters {
+        let zone = f.name.strip_prefix("frag_factor.").unwrap();
+        let t = truth.frag_factor[zone];
+        eprintln!(
+            "{zone}: {:.3} ± {:.3} (resolution {:.3}), truth {t}",
+            f.value, f.se, f.se_resolution
+        );
+        assert!(f.se.is_finite() && f.se < 0.1, "{f:?}");
+        assert!(
+            (f.value - t).abs() <= 2.0 * f.se,
+            "{zone}: {f:?} against {t}"
+        );
+    }
+    eprintln!(
+        "overall RMSE {:.5} → {:.5}, model noise {:.5}, records' {:.5}, {} runs",
+        report.rmse_before,
+        report.rmse_after,
+        report.model_noise,
+        report.records_noise,
+        report.runs
+    );
+    assert!(report.lowered && report.rmse_after < report.rmse_before);
+}
+
+/// Three zones moved at once, records from a run at the fit's own resolution (5% noise,
+/// seed 7). Measured: Urad 0.751 ± 0.012 (truth 0.75), Primos 1.271 ± 0.039 (1.3),
+/// contact 1.009 ± 0.023 (1); overall RMSE 0.0187% → 0.0145% against 0.0124% of noise;
+/// 39 runs.
+#[test]
+fn calibrate_recovers_three_zones_moved_at_once() {
+    let (scene, sc) = reduced();
+    let (truth, cfg) = three_zones();
+    let (records, _) = synthetic(&scene, &sc, &truth);
+    let report = fit(&scene, &sc, &records, &cfg);
+    assert_recovers(&report, &truth);
+    assert!(report.resolution_adequate, "{report:?}");
+}
+
+/// The same truth, records from a run at half the fit's marker spacing (8 times the
+/// markers): the fit must absorb what its own resolution gets wrong, and its SE must say
+/// how much. Measured: Urad 0.770 ± 0.029, Primos 1.355 ± 0.041, contact 1.050 ± 0.034
+/// (of which the resolution check's shift 0.022, 0.029 and 0.005); overall RMSE 0.0175% →
+/// 0.0154%; 46 runs.
+#[test]
+fn calibrate_recovers_three_zones_from_records_of_a_finer_run() {
+    let (scene, sc) = reduced();
+    let (truth, cfg) = three_zones();
+    let mut fine = sc.clone();
+    let r = caveflow::engine::resolution::resolve(&scene, &sc);
+    fine.resolution.marker_spacing = Some(0.5 * r.marker_spacing);
+    let (records, _) = synthetic(&scene, &fine, &truth);
+    let report = fit(&scene, &sc, &records, &cfg);
+    assert_recovers(&report, &truth);
 }
