@@ -4,22 +4,36 @@
 //! A resolution is given as multipliers of the default one ([`resolution::resolve`]): of the
 //! disk thickness h, of the marker spacing and of the draw increment. Each point of the full
 //! factorial grid is run once (or `repeats` times, keeping the median wall time), and so is
-//! the reference. The errors against the reference are:
+//! the reference. The sweep runs the scene's whole schedule (`--keep-periods` shortens it):
+//! the early periods, before waste reaches any drawpoint, hide most of the error. The errors
+//! against the reference are:
 //!
 //! - **grade RMSE**: the root mean square difference of the first grade over every
 //!   drawpoint-period that both runs drew from, divided by the reference's mean grade over the
 //!   same rows (a relative error: 0.01 is 1%);
+//! - **late grade RMSE**: the same over the second half of the schedule's periods, where
+//!   ore and waste mix;
+//! - **dilution entry**: per drawpoint, the cumulative tonnes at which the waste share of a
+//!   period first reaches [`DILUTION_ENTRY_SHARE`] (interpolated between the midpoints of
+//!   that period and the one before); the mean relative difference over the drawpoints
+//!   where both runs reach it;
 //! - **IMZ width**: per drawpoint, the widest disk (2 R) at the last period; the mean relative
 //!   difference over drawpoints;
 //! - **IEZ height**: per drawpoint, the 95th percentile of the drawn markers' origin heights
 //!   above the drawpoint (the extent of the isolated extraction zone); the mean relative
 //!   difference over drawpoints.
 //!
-//! # Why the reference is a run, not a limit
-//! REBOP has no closed form to compare against. Halving h and the spacing and quartering
-//! the increment is the finest that runs in minutes on the demo; the errors measured are
-//! therefore distances to that run, and read as upper bounds of convergence only as far as the
-//! reference itself has converged (the sweep shows how fast they shrink towards it).
+//! # The reference's own error
+//! REBOP has no closed form to compare against, so the reference is a fine run, and the
+//! errors are distances to it. How far the reference itself is from the converged limit is
+//! estimated, not assumed: a check run at twice the reference's h and spacing (same
+//! increment, every marker every update) is compared with it, and, if the error falls as
+//! the spacing to the power p, the reference's own error is the check's divided by
+//! 2^p − 1 (Richardson). p is [`REFERENCE_ORDER`], the order of a sampling error. Where the
+//! error is noise rather than bias the estimate is high (two independent noises add in
+//! quadrature: the check's distance would then be √(2^(2p) + 1) times the reference's own
+//! error, not 2^p − 1), so it is an upper bound. The reference row of the table carries these
+//! estimates in its error columns; the check run is a row of its own (`is_reference_check`).
 //!
 //! Every run is made with `flow.enforce_stability = false`: the coarse and fine corners of the
 //! grid are studies of the method, never predictions, and may fall outside where it holds.
@@ -81,6 +95,10 @@ pub struct SweepRow {
     pub markers: u64,
     /// Relative grade RMSE over drawpoint-periods (0.01 = 1%).
     pub grade_rmse: f64,
+    /// Relative grade RMSE over the drawpoint-periods of the second half of the schedule.
+    pub grade_rmse_late: f64,
+    /// Mean relative error of the dilution entry per drawpoint.
+    pub dilution_entry_error: f64,
     /// Mean relative error of the widest IMZ disk per drawpoint.
     pub imz_width_error: f64,
     /// Mean relative error of the IEZ height (95th percentile origin height) per drawpoint.
@@ -89,8 +107,10 @@ pub struct SweepRow {
     pub delivered: f64,
     /// This is the default resolution.
     pub is_default: bool,
-    /// This is the reference run.
+    /// This is the reference run (its error columns hold its own estimated error).
     pub is_reference: bool,
+    /// This is the check run of the reference's own error (twice its h and spacing).
+    pub is_reference_check: bool,
     /// This is the automatic resolution for the sweep's accuracy target.
     pub is_auto: bool,
     /// On the Pareto front of wall time against grade RMSE.
@@ -217,8 +237,47 @@ fn mean_relative(a: &[f64], r: &[f64]) -> f64 {
     }
 }
 
+/// Order p of the error in the resolution, for the reference's own error (module docs): a
+/// drawpoint-period's grade is the mean of N ∝ s⁻³ markers, so its sampling error goes as
+/// s^(3/2).
+pub const REFERENCE_ORDER: f64 = 1.5;
+
+/// Waste share of a period at which the dilution entry is read (sweep errors).
+pub const DILUTION_ENTRY_SHARE: f64 = 0.1;
+
+/// Per drawpoint, the cumulative tonnes at which a period's waste share first reaches
+/// [`DILUTION_ENTRY_SHARE`], interpolated between the midpoints of that period and the one
+/// before (NaN where it never does).
+fn dilution_entries(out: &RunOutput, n_dp: usize) -> Vec<f64> {
+    let e = &out.extraction;
+    let mut rows: Vec<usize> = (0..e.period.len()).filter(|&i| e.tonnes[i] > 0.0).collect();
+    rows.sort_by_key(|&i| (e.drawpoint[i], e.period[i]));
+    let mut entry = vec![f64::NAN; n_dp];
+    let mut prev: Option<(u32, f64, f64)> = None; // (drawpoint, midpoint tonnes, share)
+    for i in rows {
+        let d = e.drawpoint[i];
+        let (mid, share) = (e.cum_tonnes[i] - 0.5 * e.tonnes[i], e.dilution[i]);
+        let slot = &mut entry[d as usize];
+        if slot.is_nan() && share >= DILUTION_ENTRY_SHARE {
+            *slot = match prev {
+                Some((pd, pm, ps)) if pd == d && ps < DILUTION_ENTRY_SHARE => {
+                    pm + (mid - pm) * (DILUTION_ENTRY_SHARE - ps) / (share - ps)
+                }
+                _ => mid,
+            };
+        }
+        prev = Some((d, mid, share));
+    }
+    entry
+}
+
 /// Relative RMSE of the first grade over the drawpoint-periods both runs drew from.
 pub fn grade_rmse(out: &RunOutput, reference: &RunOutput) -> f64 {
+    grade_rmse_from(out, reference, i64::MIN)
+}
+
+/// [`grade_rmse`] over the periods from `first` on.
+fn grade_rmse_from(out: &RunOutput, reference: &RunOutput, first: i64) -> f64 {
     let (Some(g), Some(gr)) = (
         out.extraction.grades.first(),
         reference.extraction.grades.first(),
@@ -231,6 +290,9 @@ pub fn grade_rmse(out: &RunOutput, reference: &RunOutput) -> f64 {
         .collect();
     let (mut sq, mut sum, mut n) = (0.0, 0.0, 0usize);
     for j in 0..reference.extraction.period.len() {
+        if reference.extraction.period[j] < first {
+            continue;
+        }
         let Some(&i) = rows.get(&key(&reference.extraction, j)) else {
             continue;
         };
@@ -247,7 +309,7 @@ pub fn grade_rmse(out: &RunOutput, reference: &RunOutput) -> f64 {
 }
 
 /// Marks the rows on the Pareto front of wall time against grade RMSE: no other row is both
-/// faster and more accurate. The reference (error 0 by definition) is left off.
+/// faster and more accurate. The reference (whose errors are its own estimate) is left off.
 fn mark_pareto(rows: &mut [SweepRow]) {
     let mut order: Vec<usize> = (0..rows.len())
         .filter(|&i| !rows[i].is_reference && rows[i].grade_rmse.is_finite())
@@ -310,20 +372,56 @@ pub fn sweep(
             grid.len() - 1
         });
     let n_dp = scene.drawpoints.len();
-    let total = grid.len();
+    // The check of the reference's own error: twice its h and spacing, its increment, every
+    // marker every update.
+    let check_mult = [
+        2.0 * cfg.reference[0],
+        2.0 * cfg.reference[1],
+        cfg.reference[2],
+    ];
+    let check_res = ResolvedResolution {
+        max_marker_move: 0.0,
+        ..times(&default, check_mult)
+    };
+    let total = grid.len() + 1;
     let (reference, ref_wall) = run_at(scene, base, &res[0], cfg.reference, cfg.repeats)?;
-    let ref_w = imz_widths(&reference, n_dp);
-    let ref_h = iez_heights(&reference, scene);
+    // The second half of the schedule's periods.
+    let late = {
+        let mut p: Vec<i64> = reference.extraction.period.clone();
+        p.sort_unstable();
+        p.dedup();
+        p.get(p.len() / 2).copied().unwrap_or(i64::MAX)
+    };
+    let measures = Measures {
+        de: dilution_entries(&reference, n_dp),
+        w: imz_widths(&reference, n_dp),
+        h: iez_heights(&reference, scene),
+    };
+    let errors = |out: &RunOutput| Errors {
+        grade: grade_rmse(out, &reference),
+        grade_late: grade_rmse_from(out, &reference, late),
+        de: mean_relative(&dilution_entries(out, n_dp), &measures.de),
+        w: mean_relative(&imz_widths(out, n_dp), &measures.w),
+        h: mean_relative(&iez_heights(out, scene), &measures.h),
+    };
+    let (check, check_wall) = run_at(scene, base, &check_res, check_mult, cfg.repeats)?;
+    let check_errors = errors(&check);
+    // Richardson: the error of the reference, if it falls as spacing^p.
+    let own = 1.0 / (2f64.powf(REFERENCE_ORDER) - 1.0);
+    let ref_errors = Errors {
+        grade: own * check_errors.grade,
+        grade_late: own * check_errors.grade_late,
+        de: own * check_errors.de,
+        w: own * check_errors.w,
+        h: own * check_errors.h,
+    };
     let mut rows = Vec::with_capacity(total);
     for (k, &mult) in grid.iter().enumerate() {
         let row = if k == 0 {
-            row_of(mult, &reference, ref_wall, 0.0, 0.0, 0.0)
+            row_of(mult, &reference, ref_wall, &ref_errors)
         } else {
             let (out, wall) = run_at(scene, base, &res[k], mult, cfg.repeats)?;
-            let e_grade = grade_rmse(&out, &reference);
-            let e_w = mean_relative(&imz_widths(&out, n_dp), &ref_w);
-            let e_h = mean_relative(&iez_heights(&out, scene), &ref_h);
-            row_of(mult, &out, wall, e_grade, e_w, e_h)
+            row_of(mult, &out, wall, &errors(&out))
         };
         let row = SweepRow {
             is_reference: k == 0,
@@ -331,30 +429,50 @@ pub fn sweep(
             is_default: row.is_default && auto_at != Some(k),
             ..row
         };
-        progress(k + 1, total, &row);
+        progress(rows.len() + 1, total, &row);
         rows.push(row);
+        if k == 0 {
+            let row = SweepRow {
+                is_reference_check: true,
+                is_default: false,
+                ..row_of(check_mult, &check, check_wall, &check_errors)
+            };
+            progress(rows.len() + 1, total, &row);
+            rows.push(row);
+        }
     }
     mark_pareto(&mut rows);
     Ok(rows)
 }
 
-fn row_of(
-    mult: [f64; 3],
-    out: &RunOutput,
-    wall_s: f64,
-    grade_rmse: f64,
-    imz_width_error: f64,
-    iez_height_error: f64,
-) -> SweepRow {
+/// The reference's measures per drawpoint.
+struct Measures {
+    de: Vec<f64>,
+    w: Vec<f64>,
+    h: Vec<f64>,
+}
+
+/// A run's errors against the reference (module docs).
+struct Errors {
+    grade: f64,
+    grade_late: f64,
+    de: f64,
+    w: f64,
+    h: f64,
+}
+
+fn row_of(mult: [f64; 3], out: &RunOutput, wall_s: f64, e: &Errors) -> SweepRow {
     let b = &out.balance;
     SweepRow {
         mult,
         resolution: out.resolution,
         wall_s,
         markers: b.markers_mobilised,
-        grade_rmse,
-        imz_width_error,
-        iez_height_error,
+        grade_rmse: e.grade,
+        grade_rmse_late: e.grade_late,
+        dilution_entry_error: e.de,
+        imz_width_error: e.w,
+        iez_height_error: e.h,
         delivered: if b.scheduled_tonnes > 0.0 {
             b.credited_tonnes / b.scheduled_tonnes
         } else {
@@ -362,6 +480,7 @@ fn row_of(
         },
         is_default: mult == [1.0; 3],
         is_reference: false,
+        is_reference_check: false,
         is_auto: false,
         pareto: false,
     }
@@ -385,11 +504,14 @@ pub fn write_sweep(path: &Path, rows: &[SweepRow]) -> Result<(), OutputError> {
             i64s(rows.iter().map(|r| r.markers as i64).collect()),
         ),
         ("grade_rmse", col(&|r| r.grade_rmse)),
+        ("grade_rmse_late", col(&|r| r.grade_rmse_late)),
+        ("dilution_entry_error", col(&|r| r.dilution_entry_error)),
         ("imz_width_error", col(&|r| r.imz_width_error)),
         ("iez_height_error", col(&|r| r.iez_height_error)),
         ("delivered", col(&|r| r.delivered)),
         ("is_default", flag(&|r| r.is_default)),
         ("is_reference", flag(&|r| r.is_reference)),
+        ("is_reference_check", flag(&|r| r.is_reference_check)),
         ("pareto", flag(&|r| r.pareto)),
         ("is_auto", flag(&|r| r.is_auto)),
     ];
@@ -404,7 +526,10 @@ pub fn write_sweep_chart(path: &Path, rows: &[SweepRow], title: &str) -> Result<
         .map(|r| SweepPoint {
             wall_s: r.wall_s,
             error: r.grade_rmse,
-            label: format!("{}/{}/{}", r.mult[0], r.mult[1], r.mult[2]),
+            label: r
+                .mult
+                .map(|m| format!("{}", (m * 100.0).round() / 100.0))
+                .join("/"),
             pareto: r.pareto,
             is_default: r.is_default,
             is_auto: r.is_auto,
@@ -428,14 +553,52 @@ mod tests {
             wall_s,
             markers: 0,
             grade_rmse,
+            grade_rmse_late: 0.0,
+            dilution_entry_error: 0.0,
             imz_width_error: 0.0,
             iez_height_error: 0.0,
             delivered: 1.0,
             is_default: false,
             is_reference: false,
+            is_reference_check: false,
             is_auto: false,
             pareto: false,
         }
+    }
+
+    /// The dilution entry is read where a period's waste share first reaches 10%, between
+    /// the midpoints of that period and the one before; a drawpoint that never reaches it
+    /// has none.
+    #[test]
+    fn dilution_entry_interpolates_between_period_midpoints() {
+        let mut out = RunOutput::default();
+        let e = &mut out.extraction;
+        // Drawpoint 0: 100 t a period, waste 0, 0.05, 0.25 (entry between the midpoints 150
+        // and 250 t: 150 + 100 × 0.05 / 0.2 = 175 t). Drawpoint 1: 0.02 then 0.3 from its
+        // first delivering period on, after an idle one (entry at that period's midpoint).
+        // Drawpoint 2 never reaches 10%.
+        for (d, p, t, w) in [
+            (0, 1, 100.0, 0.0),
+            (0, 2, 100.0, 0.05),
+            (0, 3, 100.0, 0.25),
+            (1, 1, 0.0, 0.0),
+            (1, 2, 100.0, 0.3),
+            (2, 1, 100.0, 0.09),
+        ] {
+            e.drawpoint.push(d);
+            e.period.push(p);
+            e.tonnes.push(t);
+            e.dilution.push(w);
+        }
+        let mut cum = [0.0; 3];
+        for i in 0..e.period.len() {
+            cum[e.drawpoint[i] as usize] += e.tonnes[i];
+            e.cum_tonnes.push(cum[e.drawpoint[i] as usize]);
+        }
+        let de = dilution_entries(&out, 3);
+        assert!((de[0] - 175.0).abs() < 1e-9, "{de:?}");
+        assert_eq!(de[1], 50.0);
+        assert!(de[2].is_nan());
     }
 
     #[test]

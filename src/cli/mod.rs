@@ -186,7 +186,7 @@ pub struct SweepArgs {
     #[arg(long, value_delimiter = ',', default_values_t = [4.0, 1.0, 0.25])]
     pub increment: Vec<f64>,
     /// Multipliers h,spacing,increment of the converged reference run.
-    #[arg(long, value_delimiter = ',', num_args = 3, default_values_t = [0.5, 0.5, 0.25])]
+    #[arg(long, value_delimiter = ',', default_values_t = [0.5, 0.5, 0.25])]
     pub reference: Vec<f64>,
     /// Runs per point (the median wall time is kept).
     #[arg(long, default_value_t = 1)]
@@ -552,26 +552,41 @@ fn sweep_cmd(mut a: SweepArgs) -> Result<ExitCode> {
     if !keep_periods(&mut loaded.scene, a.keep_periods) {
         return Ok(ExitCode::from(1));
     }
+    let Ok(reference) = <[f64; 3]>::try_from(a.reference.as_slice()) else {
+        eprintln!(
+            "--reference takes three multipliers, h,spacing,increment (e.g. 0.5,0.5,0.25); got {}",
+            a.reference.len()
+        );
+        return Ok(ExitCode::from(1));
+    };
     let cfg = SweepConfig {
         h: a.h,
         spacing: a.spacing,
         increment: a.increment,
-        reference: [a.reference[0], a.reference[1], a.reference[2]],
+        reference,
         repeats: a.repeats,
         target: Some(a.target),
     };
     let rows = sweep::sweep(&loaded.scene, &sc, &cfg, &mut |done, total, r| {
         eprintln!(
-            "{done}/{total}: h×{} spacing×{} increment×{}: {:.2} s, {} markers, grade RMSE {:.3}%, IMZ width {:.2}%, IEZ height {:.2}%{}",
+            "{done}/{total}: h×{} spacing×{} increment×{}: {:.2} s, {} markers, grade RMSE {:.3}% (second half {:.3}%), dilution entry {:.2}%, IMZ width {:.2}%, IEZ height {:.2}%{}",
             r.mult[0],
             r.mult[1],
             r.mult[2],
             r.wall_s,
             r.markers,
             100.0 * r.grade_rmse,
+            100.0 * r.grade_rmse_late,
+            100.0 * r.dilution_entry_error,
             100.0 * r.imz_width_error,
             100.0 * r.iez_height_error,
-            if r.is_reference { " (reference)" } else { "" }
+            if r.is_reference {
+                " (reference: its own estimated error)"
+            } else if r.is_reference_check {
+                " (check of the reference)"
+            } else {
+                ""
+            }
         )
     })?;
     std::fs::create_dir_all(&a.out).with_context(|| a.out.display().to_string())?;

@@ -52,22 +52,21 @@ pub struct Inputs {
     pub periods: Option<PathBuf>,
 }
 
-/// Resolution knobs. Each has a measured cost and error (see the README).
+/// Resolution knobs. Each has a measured cost and error (see the README). The defaults are
+/// stated once, in `engine::resolution` (the rule and why), which resolves them.
 #[derive(Debug, Clone, Serialize, Deserialize, Default, PartialEq)]
 #[serde(deny_unknown_fields, default)]
 pub struct Resolution {
-    /// Disk (layer) thickness h, m. Default: min(0.5 × smallest block dimension,
-    /// drawpoint opening width), MassFlow's 0.5 × block size unless the opening is finer.
+    /// Disk (layer) thickness h, m. Unset: the scene default (`engine::resolution`).
     pub layer_thickness: Option<f64>,
-    /// Marker lattice spacing, m. Default: 0.5 × h (MassFlow: 0.25 × block size with
-    /// disks 0.5 × block size, the same ratio).
+    /// Marker lattice spacing, m. Unset: the scene default (`engine::resolution`).
     pub marker_spacing: Option<f64>,
-    /// Draw increment: tonnes per drawpoint between marker updates. Default: the tonnes
-    /// of one opening disk, π (w/2)² h ρ_s (1 − n1) (see `engine::resolution`).
+    /// Draw increment: tonnes per drawpoint between marker updates. Unset: the scene
+    /// default (`engine::resolution`).
     pub draw_increment: Option<f64>,
     /// The most a marker may move in one of its own steps, m: a marker slower than this per
-    /// update steps once every 2^L updates by their summed motion (`engine::cadence`).
-    /// Default: 0.5 × marker spacing; 0 makes every marker step every update.
+    /// update steps once every 2^L updates by their summed motion (`engine::cadence`); 0
+    /// makes every marker step every update. Unset: `engine::resolution::max_move_rule`.
     pub max_marker_move: Option<f64>,
     /// Accuracy target: the grade RMSE (relative, 0.01 = 1%) against a converged run that the
     /// resolution should reach. When set, the knobs left unset are chosen for it

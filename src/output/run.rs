@@ -98,11 +98,6 @@ pub(crate) fn table_batch(
     RecordBatch::try_new(spec.arrow_schema(&fixed_names, &extra_names), columns)
 }
 
-/// Writes the extraction report (see [`extraction_batch`]).
-pub fn write_extraction(path: &Path, scene: &Scene, t: Extraction) -> Result<(), OutputError> {
-    write_batch(path, &extraction_batch(scene, t).map_err(arrow_err(path))?)
-}
-
 /// The extraction report: the fixed fields in spec order, then one column per grade under
 /// the grade's own name, then `lith_<name>` (mass share) per lithology.
 pub fn extraction_batch(scene: &Scene, t: Extraction) -> Result<RecordBatch, ArrowError> {
@@ -149,11 +144,6 @@ pub fn extraction_batch(scene: &Scene, t: Extraction) -> Result<RecordBatch, Arr
     table_batch(&EXTRACTION, fixed, grades.chain(liths).collect())
 }
 
-/// Writes the IMZ geometry table.
-pub fn write_imz(path: &Path, scene: &Scene, t: ImzTable) -> Result<(), OutputError> {
-    write_batch(path, &imz_batch(scene, t).map_err(arrow_err(path))?)
-}
-
 /// The IMZ geometry table.
 pub fn imz_batch(scene: &Scene, t: ImzTable) -> Result<RecordBatch, ArrowError> {
     let fixed = vec![
@@ -165,11 +155,6 @@ pub fn imz_batch(scene: &Scene, t: ImzTable) -> Result<RecordBatch, ArrowError> 
         ("radius", f64s(t.radius)),
     ];
     table_batch(&IMZ, fixed, Vec::new())
-}
-
-/// Writes the drawn markers (the IEZ).
-pub fn write_drawn(path: &Path, scene: &Scene, t: DrawnTable) -> Result<(), OutputError> {
-    write_batch(path, &drawn_batch(scene, t).map_err(arrow_err(path))?)
 }
 
 /// The drawn markers (the IEZ).
@@ -189,11 +174,6 @@ pub fn drawn_batch(scene: &Scene, t: DrawnTable) -> Result<RecordBatch, ArrowErr
     table_batch(&DRAWN, fixed, Vec::new())
 }
 
-/// Writes the air-gap table.
-pub fn write_air_gap(path: &Path, t: AirGapTable) -> Result<(), OutputError> {
-    write_batch(path, &air_gap_batch(t).map_err(arrow_err(path))?)
-}
-
 /// The air-gap table.
 pub fn air_gap_batch(t: AirGapTable) -> Result<RecordBatch, ArrowError> {
     let fixed = vec![
@@ -203,11 +183,6 @@ pub fn air_gap_batch(t: AirGapTable) -> Result<RecordBatch, ArrowError> {
         ("air_gap", f64s(t.air_gap)),
     ];
     table_batch(&AIR_GAP, fixed, Vec::new())
-}
-
-/// Writes the free-surface table.
-pub fn write_surface(path: &Path, t: SurfaceTable) -> Result<(), OutputError> {
-    write_batch(path, &surface_batch(t).map_err(arrow_err(path))?)
 }
 
 /// The free-surface table.

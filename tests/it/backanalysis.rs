@@ -46,11 +46,7 @@ fn reduced() -> (Scene, Scenario) {
 /// Synthetic records (`analysis::records`, as `data/records.csv` is made): the run with
 /// `truth`, Mo × (1 + ε). Also returns the RMS of the noise actually added (the error a
 /// perfect model would still show).
-fn synthetic(
-    scene: &Scene,
-    sc: &Scenario,
-    truth: &Calibration,
-) -> (ProductionRecords, f64) {
+fn synthetic(scene: &Scene, sc: &Scenario, truth: &Calibration) -> (ProductionRecords, f64) {
     let mut s = scene.clone();
     truth.apply(&mut s.blocks).unwrap();
     let out = Engine::new(&s, sc).unwrap().run(&mut |_, _| {});

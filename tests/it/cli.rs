@@ -215,6 +215,20 @@ fn run_keep_periods_and_cadence_setting() {
             "{cmd:?}"
         );
     }
+    // The sweep's reference takes exactly three multipliers, comma-separated.
+    let sweep_ref = |r: &str| {
+        caveflow()
+            .current_dir(env!("CARGO_MANIFEST_DIR"))
+            .args(["sweep", "data/scenario.toml", "--reference", r, "--out"])
+            .arg(tmp.path().join("ref"))
+            .output()
+            .unwrap()
+    };
+    let two = sweep_ref("0.5,0.5");
+    assert_eq!(two.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&two.stderr).contains(
+        "--reference takes three multipliers, h,spacing,increment (e.g. 0.5,0.5,0.25); got 2"
+    ));
     let bad = run(&["--set", "resolution.max_marker_move=-1"]);
     assert_eq!(bad.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&bad.stderr)
