@@ -27,16 +27,19 @@
 //! 2. **joint**: the zone factors θ together, by Gauss–Newton on the residuals of all rows
 //!    ([`least_squares`](super::least_squares)). Each iteration runs the centre and every
 //!    zone at θ_k (1 ± h) with the others at the centre (2K + 1 runs in one parallel batch,
-//!    K zones), takes the Jacobian J = ∂e/∂θ from those central differences, and steps to
-//!    the minimum of the linearised S, no factor moving by more than 30% and none leaving
-//!    the coarse grid's range. h is 15%, then 10%: the engine's response is ragged at the
-//!    scale of single markers (a slightly wider IMZ hands a few markers to a neighbour), so
-//!    the differences must span many markers' worth. Up to 3 iterations, fewer when no
-//!    factor moves by 1%. The result is the last step's minimum of the *linearised* S, not
-//!    the best run seen: on a ragged surface the lowest of many runs is the one whose
-//!    markers happened to fall best (on the three-zone truth, picking the best run
-//!    put Urad at 0.720 ± 0.012 against a truth of 0.75; the linearised minimum gives 0.745).
-//!    J's off-diagonal terms are how the zones' influence on one another enters.
+//!    K zones). The residuals and the Jacobian J = ∂e/∂θ at the centre are, row by row, the
+//!    least-squares plane e = a + J (θ − centre) through every run made so far within 20%
+//!    of the centre on every factor (the coarse grid's and 1b's runs count): a regression
+//!    over many runs, not a difference of two. The step goes to the minimum of the
+//!    linearised S, no factor moving by more than 30% and none leaving the coarse grid's
+//!    range. h is 15%, then 10%: the engine's response is ragged at the scale of single
+//!    markers (a slightly wider IMZ hands a few markers to a neighbour), so the probes must
+//!    span many markers' worth. Up to 3 iterations, fewer when no factor moves by 1%. The
+//!    result is the last step's minimum of the *linearised* S, not the best run seen: on a
+//!    ragged surface the lowest of many runs is the one whose markers happened to fall best
+//!    (on the tests' three-zone truth, picking the best run put Urad at 0.720 ± 0.012
+//!    against a truth of 0.75; the linearised minimum gives 0.751). J's off-diagonal terms
+//!    are how the zones' influence on one another enters.
 //! 3. **globals** (when asked): n1 then φ factors, each on a grid around 1 with the zones
 //!    fixed, judged on all rows; θ̂ from the profile's parabola (below).
 //! 4. a run at the fitted values gives the error after, and a run at finer resolution the
@@ -729,9 +732,9 @@ fn profile_fit(prof: &Profile) -> (f64, f64, [f64; 2]) {
     )
 }
 
-/// Relative steps of the joint fit's central differences, by iteration (the last one
-/// repeats): the engine's response is ragged at the scale of single markers, so a step
-/// must move the IMZs by much more than a marker's worth.
+/// Relative steps of the joint fit's probes, by iteration (the last one repeats): the
+/// engine's response is ragged at the scale of single markers, so a step must move the
+/// IMZs by much more than a marker's worth.
 const FD_STEPS: [f64; 2] = [0.15, 0.1];
 /// Iterations of the joint fit at most.
 const MAX_ITERATIONS: usize = 3;
