@@ -659,11 +659,13 @@ fn write_chart<R: Render>(path: &Path, chart: &R) -> Result<(), ChartError> {
                 path: path.to_path_buf(),
                 source,
             };
-            // Synced before the rename, like every other output file (see `output`).
+            // Synced before the rename and the directory after it, like every other output
+            // file (see `output::parquet`).
             std::fs::File::open(&tmp)
                 .and_then(|f| f.sync_all())
                 .map_err(io)?;
-            std::fs::rename(&tmp, path).map_err(io)
+            std::fs::rename(&tmp, path).map_err(io)?;
+            super::parquet::sync_parent(path).map_err(io)
         });
     if result.is_err() {
         // The backend may have written a partial file before failing; it is ours to remove.

@@ -131,22 +131,26 @@ impl Drop for AtomicFile {
     }
 }
 
-/// Syncs the directory holding `path`, making a completed rename durable.
-#[cfg(unix)]
-fn sync_dir(path: &Path) -> Result<(), OutputError> {
-    let dir = match path.parent() {
+/// The directory holding `path` ("." for a bare file name).
+fn parent(path: &Path) -> &Path {
+    match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),
-    };
-    File::open(dir)
-        .and_then(|d| d.sync_all())
-        .map_err(io_err(dir))
+    }
 }
 
-/// Directories cannot be opened for syncing on this platform; the rename is still atomic.
-#[cfg(not(unix))]
-fn sync_dir(_path: &Path) -> Result<(), OutputError> {
+/// Syncs the directory holding `path`, making a completed rename durable (every atomic
+/// writer of the output layer calls it after its rename). Directories cannot be opened for
+/// syncing on every platform; where they cannot, the rename is still atomic.
+pub(crate) fn sync_parent(path: &Path) -> io::Result<()> {
+    if cfg!(unix) {
+        File::open(parent(path))?.sync_all()?;
+    }
     Ok(())
+}
+
+fn sync_dir(path: &Path) -> Result<(), OutputError> {
+    sync_parent(path).map_err(io_err(parent(path)))
 }
 
 /// Writes `bytes` to `path` atomically (text, JSON, TOML).
