@@ -6,11 +6,13 @@
 //! `schema` (table contracts) → [`io`] (read and validate tables) → [`model`] (block model,
 //! drawpoints, schedule, scenario) → [`engine`] (IMZs, markers: one module per mechanism) →
 //! [`output`] (Parquet writers, manifest, charts) → `analysis` (reconcile, calibrate) →
-//! [`cli`]. No module reaches back up.
+//! [`cli`]. No module reaches back up. [`docs`] holds the notes on the method, its
+//! validation and its performance.
 #![warn(missing_docs)]
 
 pub mod analysis;
 pub mod cli;
+pub mod docs;
 pub mod engine;
 pub mod io;
 pub mod model;

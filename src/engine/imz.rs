@@ -35,7 +35,7 @@
 //! drawpoints draw that much more marker mass than scheduled, and a mass correction of
 //! ~0.90 hid it. The form above is the one that conserves mass. The r-law itself is the
 //! summary's, unchanged. The far-field width and the base angle under both forms are
-//! measured side by side in the README's validation section.
+//! measured side by side in `docs::validation`.
 //!
 //! The marker pass reads the same balance (`engine::markers`): each disk records the void
 //! that entered its base (`DiskMotion::dv`) and the void that left through its top

@@ -28,7 +28,7 @@
 //! The kinematics conserve mass (`imz`, the volume balance): the IMZ's material is at n1,
 //! the stagnant ground at n0, and the marker mass drawn equals the tonnes scheduled up to the
 //! discreteness of markers (heavily overlapping IMZs, closer than about three openings,
-//! still lose a few percent in superposition; README, validation). Each period is credited
+//! still lose a few percent in superposition; `docs::validation`). Each period is credited
 //! its schedule while its drawpoint is flowing, and its grades are read from the drawpoint's
 //! stream of drawn markers over the period's scheduled interval ([`crediting`]); a drawpoint
 //! that really could not deliver is `short`, with the reason. The distribution of credited

@@ -12,7 +12,7 @@
 //!   MassFlow's 0.5 × block, sets neither. Where h is 0.5 × block (the demo: 7.6 m blocks,
 //!   h 3.8 m) this is MassFlow's pair, 0.5 h; a mine-scale model of 15.2 m blocks with 4 m
 //!   openings gets h 4 m and 3.4 m markers (drawpoint spacing 13.6 m), not 2 m ones with
-//!   6.7× the markers for half the daily grade error (README, "Mine scale").
+//!   6.7× the markers for half the daily grade error (`docs::performance`, "Mine scale").
 //! - draw increment = the tonnes of the smallest opening disk (π (w/2)² h) at dilated
 //!   density, times the spacing over 0.5 h when the spacing is coarser than that (as for
 //!   an accuracy target, below: a marker moves about as many spacings per update as with
@@ -20,11 +20,11 @@
 //!   in cycles of at most a sixteenth of its lowest disk (`Imz::draw`), and markers then
 //!   move by the void passed "since the last marker update" (summary §3.3). The axial
 //!   marker of a cone profile moves up to 3 disks per update at one disk; a third of it
-//!   keeps it within one disk at three times the cost (see the speed–accuracy sweep in the
-//!   README).
+//!   keeps it within one disk at three times the cost (see the speed–accuracy sweep in
+//!   `docs::performance`).
 //!
 //! # From an accuracy target
-//! The speed–accuracy sweep (`analysis::sweep`, README "Speed and accuracy") measured what
+//! The speed–accuracy sweep (`analysis::sweep`, `docs::performance`, "Speed and accuracy") measured what
 //! each knob buys over the whole demo draw: the grade RMSE against the reference follows
 //! the marker spacing, and h and the increment move it little. That is what one expects of
 //! a sampling error: a drawpoint-period's grade is the mean of the N markers it draws, N ∝
@@ -55,12 +55,12 @@ use crate::engine::ResolvedResolution;
 use crate::model::{Scenario, Scene};
 
 /// Grade RMSE of the scene default against the reference over the whole demo draw: 1.56%
-/// (README, "Speed and accuracy"; the reference's own error is estimated at about 1%).
+/// (`docs::performance`, "Speed and accuracy"; the reference's own error is estimated at about 1%).
 pub const E_DEFAULT: f64 = 0.0156;
 
 /// Exponent of the grade RMSE in the marker-spacing multiple: the least-squares slope (in
 /// logs) of the whole-demo sweep's runs at h and increment × 1 and spacing × 2, 1.41, 1 and
-/// 0.71, whose errors were 3.62, 2.56, 1.56 and 1.05% (README). Sampling alone would give
+/// 0.71, whose errors were 3.62, 2.56, 1.56 and 1.05% (`docs::performance`). Sampling alone would give
 /// 1.5; the measured distances fall more slowly because the reference's own noise is in
 /// them (at spacing × 0.5, the reference's spacing, the distance is still 0.92%), which
 /// makes the rule choose finer markers than sampling alone would, never coarser.
@@ -82,7 +82,7 @@ pub const FRAG_FRACTION: f64 = 1.0;
 /// Default `resolution.max_marker_move` as a fraction of the marker spacing: a marker that
 /// is slow enough to move less than this per update steps less often (`engine::cadence`).
 /// One spacing against half a spacing: 0.103% against 0.090% grade RMSE on the demo sweep,
-/// and no measurable change over the mine scene's first 400 days (README, "Mine scale").
+/// and no measurable change over the mine scene's first 400 days (`docs::performance`, "Mine scale").
 pub const MAX_MOVE_FRACTION: f64 = 1.0;
 
 /// Default `resolution.max_marker_move` as a fraction of the disk thickness h, where that is

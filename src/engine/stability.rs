@@ -29,7 +29,7 @@
 //!
 //! Each threshold's reason is at its constant below. The sweep that charts these regions
 //! and checks them against tiny isolated-draw runs is `tests/it/stability.rs`; its chart is
-//! in the README.
+//! in `docs::physics`.
 //!
 //! The numbers are read per drawpoint from the block just above its opening (the material
 //! whose near field the rules are about), with the drawpoint's own opening width; the
@@ -364,7 +364,7 @@ pub fn assess(
             .collect())
     } else {
         Err(format!(
-            "{}\n(the scene lies where REBOP's method fails: see the stability regions in the README)",
+            "{}\n(the scene lies where REBOP's method fails: see \"Where the method holds\" in the crate's docs, caveflow::docs::physics)",
             refused.join("\n")
         ))
     }

@@ -52,7 +52,7 @@ pub struct Inputs {
     pub periods: Option<PathBuf>,
 }
 
-/// Resolution knobs. Each has a measured cost and error (see the README). The defaults are
+/// Resolution knobs. Each has a measured cost and error (`docs::performance`). The defaults are
 /// stated once, in `engine::resolution` (the rule and why), which resolves them.
 #[derive(Debug, Clone, Serialize, Deserialize, Default, PartialEq)]
 #[serde(deny_unknown_fields, default)]

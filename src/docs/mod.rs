@@ -1,0 +1,13 @@
+//! Notes on the method, its validation and its performance, in our own words: the pages
+//! the README points to. They hold no code. Figures are under `tests/figures/` in the
+//! repository (the links are relative to this directory, so they resolve where the Markdown
+//! files are read in the repository; rustdoc shows the text).
+
+#[doc = include_str!("physics.md")]
+pub mod physics {}
+
+#[doc = include_str!("validation.md")]
+pub mod validation {}
+
+#[doc = include_str!("performance.md")]
+pub mod performance {}
