@@ -334,15 +334,6 @@ fn argmin(prof: &Profile) -> f64 {
         .map_or(1.0, |p| p.0)
 }
 
-/// `start` with every zone's fragment factor set to `value(zone)`.
-fn zones_at(start: &Calibration, zones: &[String], value: impl Fn(&str) -> f64) -> Calibration {
-    let mut c = start.clone();
-    for z in zones {
-        c.frag_factor.insert(z.clone(), value(z));
-    }
-    c
-}
-
 /// A calibration in words, for messages.
 pub fn describe(c: &Calibration) -> String {
     let mut parts: Vec<String> = c
@@ -449,7 +440,7 @@ pub fn calibrate(
     } else {
         cfg.coarse
             .iter()
-            .map(|&f| zones_at(&start, &cfg.zones, |_| f))
+            .map(|&f| zones_to(&start, &cfg.zones, &vec![f; cfg.zones.len()]))
             .collect()
     };
     let first: Vec<Calibration> = std::iter::once(start.clone())
@@ -495,11 +486,6 @@ pub fn calibrate(
             .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &f| {
                 (l.min(f), h.max(f))
             });
-        let at = |t: &[f64]| {
-            zones_at(&start, &cfg.zones, |z| {
-                t[cfg.zones.iter().position(|q| q == z).unwrap()]
-            })
-        };
         let mut seen: Vec<(Vec<f64>, Eval)> = first
             .iter()
             .zip(&first_evals)
@@ -517,35 +503,16 @@ pub fn calibrate(
         // 1b. Several zones: each zone over the grid with the others at their coarse best,
         // each taking its best on all rows (module docs).
         if cfg.zones.len() > 1 {
-            let cands: Vec<Vec<f64>> = std::iter::once(theta.clone())
-                .chain((0..cfg.zones.len()).flat_map(|k| {
-                    let theta = &theta;
-                    cfg.coarse
-                        .iter()
-                        .filter(move |&&f| f != theta[k])
-                        .map(move |&f| {
-                            let mut t = theta.clone();
-                            t[k] = f;
-                            t
-                        })
-                }))
-                .filter(|t| !seen.iter().any(|(q, _)| q == t))
-                .collect();
-            let evals = p.eval_all(&cands.iter().map(|t| at(t)).collect::<Vec<_>>())?;
-            tick(cands.len(), &mut runs);
-            seen.extend(cands.into_iter().zip(evals));
-            let centre = theta.clone();
-            centres.push(centre.clone());
-            for (k, t) in theta.iter_mut().enumerate() {
-                let on_axis = |q: &[f64]| (0..q.len()).all(|j| j == k || q[j] == centre[j]);
-                if let Some((q, _)) = seen
-                    .iter()
-                    .filter(|(q, _)| on_axis(q))
-                    .min_by(|a, b| rmse(a.1.all).total_cmp(&rmse(b.1.all)))
-                {
-                    *t = q[k];
-                }
-            }
+            centres.push(theta.clone());
+            theta = one_at_a_time(
+                p,
+                &start,
+                &cfg.zones,
+                &cfg.coarse,
+                &theta,
+                &mut seen,
+                &mut |k| tick(k, &mut runs),
+            )?;
         }
         // 2. The zones jointly, from there.
         let fit = joint(p, &start, &cfg.zones, bounds, theta, seen, &mut |k| {
@@ -824,6 +791,55 @@ impl Joint {
     }
 }
 
+/// `start` with zone k's fragment factor at `t[k]`.
+fn zones_to(start: &Calibration, zones: &[String], t: &[f64]) -> Calibration {
+    let mut c = start.clone();
+    for (z, &v) in zones.iter().zip(t) {
+        c.frag_factor.insert(z.clone(), v);
+    }
+    c
+}
+
+/// Step 1b (module docs): each zone over `grid` with the others at `theta`, judged on all
+/// rows; returns each zone's best. The runs join `seen`.
+fn one_at_a_time(
+    p: &Problem,
+    start: &Calibration,
+    zones: &[String],
+    grid: &[f64],
+    theta: &[f64],
+    seen: &mut Vec<(Vec<f64>, Eval)>,
+    tick: &mut dyn FnMut(usize),
+) -> Result<Vec<f64>, CalibrateError> {
+    let cands: Vec<Vec<f64>> = std::iter::once(theta.to_vec())
+        .chain((0..zones.len()).flat_map(|k| {
+            grid.iter().filter(move |&&f| f != theta[k]).map(move |&f| {
+                let mut t = theta.to_vec();
+                t[k] = f;
+                t
+            })
+        }))
+        .filter(|t| !seen.iter().any(|(q, _)| q == t))
+        .collect();
+    let evals = p.eval_all(
+        &cands
+            .iter()
+            .map(|t| zones_to(start, zones, t))
+            .collect::<Vec<_>>(),
+    )?;
+    tick(cands.len());
+    seen.extend(cands.into_iter().zip(evals));
+    Ok((0..zones.len())
+        .map(|k| {
+            let on_axis = |q: &[f64]| (0..q.len()).all(|j| j == k || q[j] == theta[j]);
+            seen.iter()
+                .filter(|(q, _)| on_axis(q))
+                .min_by(|a, b| rmse(a.1.all).total_cmp(&rmse(b.1.all)))
+                .map_or(theta[k], |(q, _)| q[k])
+        })
+        .collect())
+}
+
 /// Points within this share of the centre on every factor make the regression.
 const WINDOW: f64 = 0.2;
 
@@ -889,11 +905,6 @@ fn joint(
     mut points: Vec<(Vec<f64>, Eval)>,
     tick: &mut dyn FnMut(usize),
 ) -> Result<Joint, CalibrateError> {
-    let at = |t: &[f64]| {
-        zones_at(start, zones, |z| {
-            t[zones.iter().position(|q| q == z).unwrap()]
-        })
-    };
     let mut last = None;
     let mut centres = Vec::new();
     for it in 0..MAX_ITERATIONS {
@@ -909,7 +920,12 @@ fn joint(
                 })
             }))
             .collect();
-        let evals = p.eval_all(&batch.iter().map(|t| at(t)).collect::<Vec<_>>())?;
+        let evals = p.eval_all(
+            &batch
+                .iter()
+                .map(|t| zones_to(start, zones, t))
+                .collect::<Vec<_>>(),
+        )?;
         tick(batch.len());
         points.extend(batch.into_iter().zip(evals));
         let Some(lin) = regression(&points, &theta) else {
