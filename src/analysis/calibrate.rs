@@ -322,6 +322,17 @@ impl Problem<'_> {
     fn eval_all(&self, cals: &[Calibration]) -> Result<Vec<Eval>, CalibrateError> {
         cals.par_iter().map(|c| self.eval(c)).collect()
     }
+
+    /// [`Problem::eval_all`] of `start` with the zones' factors at each of `ts`.
+    fn eval_zones(
+        &self,
+        start: &Calibration,
+        zones: &[String],
+        ts: &[Vec<f64>],
+    ) -> Result<Vec<Eval>, CalibrateError> {
+        let cals: Vec<Calibration> = ts.iter().map(|t| zones_to(start, zones, t)).collect();
+        self.eval_all(&cals)
+    }
 }
 
 /// A parameter's profile: (value, (Σ e², n)) per run.
@@ -821,12 +832,7 @@ fn one_at_a_time(
         }))
         .filter(|t| !seen.iter().any(|(q, _)| q == t))
         .collect();
-    let evals = p.eval_all(
-        &cands
-            .iter()
-            .map(|t| zones_to(start, zones, t))
-            .collect::<Vec<_>>(),
-    )?;
+    let evals = p.eval_zones(start, zones, &cands)?;
     tick(cands.len());
     seen.extend(cands.into_iter().zip(evals));
     Ok((0..zones.len())
@@ -920,12 +926,7 @@ fn joint(
                 })
             }))
             .collect();
-        let evals = p.eval_all(
-            &batch
-                .iter()
-                .map(|t| zones_to(start, zones, t))
-                .collect::<Vec<_>>(),
-        )?;
+        let evals = p.eval_zones(start, zones, &batch)?;
         tick(batch.len());
         points.extend(batch.into_iter().zip(evals));
         let Some(lin) = regression(&points, &theta) else {
