@@ -386,70 +386,52 @@ pub fn sweep(
     let total = grid.len() + 1;
     let (reference, ref_wall) = run_at(scene, base, &res[0], cfg.reference, cfg.repeats)?;
     // The second half of the schedule's periods.
-    let late = {
-        let mut p: Vec<i64> = reference.extraction.period.clone();
-        p.sort_unstable();
-        p.dedup();
-        p.get(p.len() / 2).copied().unwrap_or(i64::MAX)
-    };
-    let measures = Measures {
-        de: dilution_entries(&reference, n_dp),
-        w: imz_widths(&reference, n_dp),
-        h: iez_heights(&reference, scene),
-    };
+    let ids = &scene.periods.id;
+    let late = ids.get(ids.len() / 2).copied().unwrap_or(i64::MAX);
+    let (ref_de, ref_w, ref_h) = (
+        dilution_entries(&reference, n_dp),
+        imz_widths(&reference, n_dp),
+        iez_heights(&reference, scene),
+    );
     let errors = |out: &RunOutput| Errors {
         grade: grade_rmse(out, &reference),
         grade_late: grade_rmse_from(out, &reference, late),
-        de: mean_relative(&dilution_entries(out, n_dp), &measures.de),
-        w: mean_relative(&imz_widths(out, n_dp), &measures.w),
-        h: mean_relative(&iez_heights(out, scene), &measures.h),
+        de: mean_relative(&dilution_entries(out, n_dp), &ref_de),
+        w: mean_relative(&imz_widths(out, n_dp), &ref_w),
+        h: mean_relative(&iez_heights(out, scene), &ref_h),
     };
     let (check, check_wall) = run_at(scene, base, &check_res, check_mult, cfg.repeats)?;
     let check_errors = errors(&check);
     // Richardson: the error of the reference, if it falls as spacing^p.
-    let own = 1.0 / (2f64.powf(REFERENCE_ORDER) - 1.0);
-    let ref_errors = Errors {
-        grade: own * check_errors.grade,
-        grade_late: own * check_errors.grade_late,
-        de: own * check_errors.de,
-        w: own * check_errors.w,
-        h: own * check_errors.h,
-    };
+    let own = check_errors.scaled(1.0 / (2f64.powf(REFERENCE_ORDER) - 1.0));
     let mut rows = Vec::with_capacity(total);
-    for (k, &mult) in grid.iter().enumerate() {
-        let row = if k == 0 {
-            row_of(mult, &reference, ref_wall, &ref_errors)
-        } else {
-            let (out, wall) = run_at(scene, base, &res[k], mult, cfg.repeats)?;
-            row_of(mult, &out, wall, &errors(&out))
-        };
+    for row in [
+        SweepRow {
+            is_reference: true,
+            ..row_of(cfg.reference, &reference, ref_wall, &own)
+        },
+        SweepRow {
+            is_reference_check: true,
+            is_default: false,
+            ..row_of(check_mult, &check, check_wall, &check_errors)
+        },
+    ] {
+        progress(rows.len() + 1, total, &row);
+        rows.push(row);
+    }
+    for (k, &mult) in grid.iter().enumerate().skip(1) {
+        let (out, wall) = run_at(scene, base, &res[k], mult, cfg.repeats)?;
+        let row = row_of(mult, &out, wall, &errors(&out));
         let row = SweepRow {
-            is_reference: k == 0,
             is_auto: auto_at == Some(k),
             is_default: row.is_default && auto_at != Some(k),
             ..row
         };
         progress(rows.len() + 1, total, &row);
         rows.push(row);
-        if k == 0 {
-            let row = SweepRow {
-                is_reference_check: true,
-                is_default: false,
-                ..row_of(check_mult, &check, check_wall, &check_errors)
-            };
-            progress(rows.len() + 1, total, &row);
-            rows.push(row);
-        }
     }
     mark_pareto(&mut rows);
     Ok(rows)
-}
-
-/// The reference's measures per drawpoint.
-struct Measures {
-    de: Vec<f64>,
-    w: Vec<f64>,
-    h: Vec<f64>,
 }
 
 /// A run's errors against the reference (module docs).
@@ -459,6 +441,19 @@ struct Errors {
     de: f64,
     w: f64,
     h: f64,
+}
+
+impl Errors {
+    /// Every error times `k`.
+    fn scaled(&self, k: f64) -> Errors {
+        Errors {
+            grade: k * self.grade,
+            grade_late: k * self.grade_late,
+            de: k * self.de,
+            w: k * self.w,
+            h: k * self.h,
+        }
+    }
 }
 
 fn row_of(mult: [f64; 3], out: &RunOutput, wall_s: f64, e: &Errors) -> SweepRow {
