@@ -611,6 +611,7 @@ pub fn calibrate(
     let shift = joint_fit
         .as_ref()
         .and_then(|f| f.resolution_shift(after, finer));
+    let cov = joint_fit.as_ref().and_then(|f| f.covariance(after));
 
     let mut parameters = Vec::new();
     for (name, prof) in &mut profiles {
@@ -627,9 +628,8 @@ pub fn calibrate(
                     .expect("a fitted zone");
                 let value = fit.theta[k];
                 let res = shift.as_ref().map_or(f64::NAN, |d| d[k].abs());
-                let se = fit
-                    .se(after, k)
-                    .hypot(if res.is_finite() { res } else { 0.0 });
+                let stat = cov.as_ref().map_or(f64::NAN, |c| c[(k, k)].sqrt());
+                let se = stat.hypot(if res.is_finite() { res } else { 0.0 });
                 (
                     start_of(z),
                     value,
@@ -663,10 +663,7 @@ pub fn calibrate(
             rmse_after: rmse(after.of(rows.as_deref())),
         });
     }
-    let correlation = joint_fit
-        .as_ref()
-        .map(|f| f.correlation(after))
-        .unwrap_or_default();
+    let correlation = cov.as_ref().map(correlation).unwrap_or_default();
     Ok(CalibrationReport {
         grade: p.grade.clone(),
         parameters,
@@ -766,10 +763,6 @@ impl Joint {
         Some(c)
     }
 
-    fn se(&self, at: &Eval, k: usize) -> f64 {
-        self.covariance(at).map_or(f64::NAN, |c| c[(k, k)].sqrt())
-    }
-
     /// How far the factors would move had the fit been made at the finer markers of the run
     /// `finer`: the Gauss–Newton step −A⁻¹ Jᵀ (e_finer − e_fit) of the change in the
     /// predictions, on this fit's Jacobian (module docs, "Resolution").
@@ -785,21 +778,18 @@ impl Joint {
         );
         Some(-self.lin.inverse_normal()? * self.lin.j.transpose() * d)
     }
+}
 
-    /// Correlation matrix of the factors.
-    fn correlation(&self, at: &Eval) -> Vec<Vec<f64>> {
-        let Some(c) = self.covariance(at) else {
-            return Vec::new();
-        };
-        let n = c.nrows();
-        (0..n)
-            .map(|i| {
-                (0..n)
-                    .map(|j| c[(i, j)] / (c[(i, i)] * c[(j, j)]).sqrt())
-                    .collect()
-            })
-            .collect()
-    }
+/// The correlation matrix of a covariance matrix.
+fn correlation(c: &DMatrix<f64>) -> Vec<Vec<f64>> {
+    let n = c.nrows();
+    (0..n)
+        .map(|i| {
+            (0..n)
+                .map(|j| c[(i, j)] / (c[(i, i)] * c[(j, j)]).sqrt())
+                .collect()
+        })
+        .collect()
 }
 
 /// `start` with zone k's fragment factor at `t[k]`.
