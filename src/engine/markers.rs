@@ -397,11 +397,13 @@ impl WallReach {
         let (lo, hi) = (bm.origin, bm.max_corner());
         let z0 = geoms.iter().map(|g| g.z0).fold(f64::INFINITY, f64::min);
         let h = geoms.iter().map(|g| g.h).fold(f64::INFINITY, f64::min);
-        let mut bands: Vec<[f64; 4]> = Vec::new();
         if !(z0.is_finite() && h > 0.0) {
             return WallReach::default();
         }
-        for g in geoms {
+        // Each IMZ's reach per band, merged by the maximum (in parallel: a mine holds
+        // hundreds of IMZs, and the maximum does not depend on the order).
+        let one = |g: &ImzGeom| {
+            let mut bands: Vec<[f64; 4]> = Vec::new();
             let dist = [g.x - lo[0], hi[0] - g.x, g.y - lo[1], hi[1] - g.y];
             for (i, &r) in g.radius.iter().enumerate() {
                 let base = g.z0 + i as f64 * g.h - z0;
@@ -416,7 +418,20 @@ impl WallReach {
                     }
                 }
             }
-        }
+            bands
+        };
+        let merge = |mut a: Vec<[f64; 4]>, b: Vec<[f64; 4]>| {
+            if a.len() < b.len() {
+                a.resize(b.len(), [f64::NEG_INFINITY; 4]);
+            }
+            for (x, y) in a.iter_mut().zip(&b) {
+                for w in 0..4 {
+                    x[w] = x[w].max(y[w]);
+                }
+            }
+            a
+        };
+        let bands = geoms.par_iter().map(one).reduce(Vec::new, merge);
         WallReach { z0, h, bands }
     }
 
