@@ -4,11 +4,11 @@
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
-use anyhow::{bail, Context, Result};
+use anyhow::{Context, Result};
 use clap::Args;
 use polars::prelude::{col, lit, IntoLazy};
 
-use super::{keep_periods, load, progress, scenario, InputArgs};
+use super::{keep_periods, load, progress, scenario, InputArgs, UsageError};
 use crate::analysis::calibrate::{self, CalibrateConfig, Problem};
 use crate::analysis::reconcile::{self, records_frame, Frames, Settings};
 use crate::analysis::report::{write_report, ReportInfo};
@@ -97,17 +97,21 @@ fn grades(
         .cloned()
         .collect();
     if both.is_empty() {
-        bail!(
+        return Err(UsageError(format!(
             "the records sample none of the block model's grades ({})",
             scene.blocks.grade_names.join(", ")
-        );
+        ))
+        .into());
     }
     let main = match asked {
         Some(g) if both.iter().any(|b| b == g) => g.to_string(),
-        Some(g) => bail!(
-            "grade {g:?} is not sampled in the records (they hold {})",
-            both.join(", ")
-        ),
+        Some(g) => {
+            return Err(UsageError(format!(
+                "grade {g:?} is not sampled in the records (they hold {})",
+                both.join(", ")
+            ))
+            .into())
+        }
         None => match &sc.dilution.grade {
             Some(g) if both.contains(g) => g.clone(),
             _ => both[0].clone(),

@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
 
-use anyhow::{bail, Context, Result};
+use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand, ValueEnum};
 
 use crate::engine::{resolution, stability, Engine, EngineError};
@@ -197,9 +197,27 @@ pub struct SweepArgs {
     pub target: f64,
 }
 
+/// Arguments that cannot work together, or that the inputs contradict (invalid input
+/// given on the command line: exit 1, like a bad table or a bad flag).
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub struct UsageError(pub String);
+
 /// Parses the command line and runs it.
 pub fn main() -> Result<ExitCode> {
-    let cli = Cli::parse();
+    // clap exits 2 on a bad flag; here invalid input, from the command line too, exits 1.
+    // `--help` and `--version` are not errors: printed to stdout, exit 0.
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => {
+            e.print()?;
+            return Ok(if e.use_stderr() {
+                ExitCode::from(1)
+            } else {
+                ExitCode::SUCCESS
+            });
+        }
+    };
     let r = match cli.command {
         Command::Run(a) => run(a),
         Command::Validate(a) => validate(a),
@@ -216,6 +234,7 @@ pub fn main() -> Result<ExitCode> {
         // file, line, column and rule). So is a scene where the method fails (stability).
         Err(e)
             if e.downcast_ref::<ScenarioError>().is_some()
+                || e.downcast_ref::<UsageError>().is_some()
                 || matches!(e.downcast_ref(), Some(EngineError::Refused(_))) =>
         {
             eprintln!("error: {e:#}");
@@ -233,7 +252,10 @@ pub fn scenario(a: &InputArgs) -> Result<Scenario> {
         Some(path) => Scenario::load(path, &a.sets)?,
         None => {
             if a.blocks.is_none() || a.drawpoints.is_none() || a.schedule.is_none() {
-                bail!("give a scenario file, or --blocks, --drawpoints and --schedule");
+                return Err(UsageError(
+                    "give a scenario file, or --blocks, --drawpoints and --schedule".into(),
+                )
+                .into());
             }
             Scenario::from_sets(&a.sets, &cwd)?
         }
@@ -466,7 +488,11 @@ fn schema_cmd(a: SchemaArgs) -> Result<ExitCode> {
     match &a.table {
         Some(name) => match schema::table(name) {
             Some(t) => print!("{}", schema_json(t)),
-            None => bail!("no table `{name}`; tables: {}", table_names()),
+            None => {
+                // An unknown table name is invalid input, like a bad flag: exit 1.
+                eprintln!("error: no table `{name}`; tables: {}", table_names());
+                return Ok(ExitCode::from(1));
+            }
         },
         None => println!("{}", table_names()),
     }

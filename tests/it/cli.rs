@@ -25,8 +25,61 @@ fn committed_schemas_match_the_code() {
         assert_eq!(String::from_utf8(out.stdout).unwrap(), committed);
     }
     let out = caveflow().args(["schema", "nope"]).output().unwrap();
-    assert_eq!(out.status.code(), Some(2));
+    assert_eq!(out.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&out.stderr).contains("no table `nope`"));
+}
+
+/// Invalid input on the command line exits 1, as a bad table does: clap's own errors
+/// (an unknown flag or subcommand, a value that does not parse) included, each with
+/// clap's message, and arguments that cannot work together. Help and version print to stdout and exit 0.
+#[test]
+fn invalid_flags_exit_1_with_clap_message() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("calibrate");
+    for (args, says) in [
+        (
+            &["run", "data/scenario.toml", "--nope"][..],
+            "unexpected argument '--nope'",
+        ),
+        (&["frobnicate"][..], "unrecognized subcommand 'frobnicate'"),
+        (
+            &["run"][..],
+            "give a scenario file, or --blocks, --drawpoints and --schedule",
+        ),
+        (
+            &["run", "data/scenario.toml", "--threads", "two"][..],
+            "invalid value 'two'",
+        ),
+        (
+            &[
+                "calibrate",
+                "data/scenario.toml",
+                "--records",
+                "data/records.csv",
+                "--grade",
+                "Au",
+                "--out",
+                out.to_str().unwrap(),
+            ][..],
+            "grade \"Au\" is not sampled in the records",
+        ),
+    ] {
+        let got = caveflow()
+            .current_dir(env!("CARGO_MANIFEST_DIR"))
+            .args(args)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&got.stderr);
+        assert_eq!(got.status.code(), Some(1), "{args:?}: {err}");
+        assert!(err.contains(says), "{args:?}: {err}");
+        assert!(got.stdout.is_empty(), "{args:?}");
+    }
+    assert!(!out.exists(), "invalid input left {}", out.display());
+    for args in [&["--help"][..], &["run", "--help"][..], &["--version"][..]] {
+        let out = caveflow().args(args).output().unwrap();
+        assert_eq!(out.status.code(), Some(0), "{args:?}");
+        assert!(!out.stdout.is_empty(), "{args:?}");
+    }
 }
 
 /// The embedded demo validates, and `validate` refuses a broken table with file, row,
