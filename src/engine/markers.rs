@@ -990,6 +990,9 @@ fn windows<'a, T>(mut col: &'a mut [T], spans: &[(usize, usize)]) -> Vec<&'a mut
     out
 }
 
+/// Column and row ranges of grid cells, ((i0, i1), (j0, j1)), inclusive.
+type SpanIj = ((usize, usize), (usize, usize));
+
 /// The moving markers binned by plan cell, so a marker update visits only the markers a
 /// drawing IMZ can reach and stagnant ones cost nothing (DESIGN §9).
 ///
@@ -1067,6 +1070,36 @@ impl Bins {
 
     /// Cells within `margin` cells of the plan rectangle [x0, x1] × [y0, y1], pushed to `out`.
     pub fn cells_in(&self, x: [f64; 2], y: [f64; 2], margin: usize, out: &mut Vec<usize>) {
+        if let Some(((i0, i1), (j0, j1))) = self.span(x, y, margin) {
+            for j in j0..=j1 {
+                out.extend((i0..=i1).map(|i| i + self.n[0] * j));
+            }
+        }
+    }
+
+    /// The cells within `margin` cells of any of the plan rectangles `rects`, and the
+    /// cells `also` (which may hold the outside list's), ascending and each once.
+    pub fn cells_of(
+        &self,
+        rects: impl Iterator<Item = ([f64; 2], [f64; 2])>,
+        margin: usize,
+        also: &[usize],
+    ) -> Vec<usize> {
+        let mut mark = vec![false; self.n_cells() + 1];
+        for (x, y) in rects {
+            if let Some(((i0, i1), (j0, j1))) = self.span(x, y, margin) {
+                for j in j0..=j1 {
+                    mark[i0 + self.n[0] * j..=i1 + self.n[0] * j].fill(true);
+                }
+            }
+        }
+        also.iter().for_each(|&c| mark[c] = true);
+        (0..mark.len()).filter(|&c| mark[c]).collect()
+    }
+
+    /// The column and row ranges ((i0, i1), (j0, j1)) of the cells within `margin` cells of
+    /// the plan rectangle [x0, x1] × [y0, y1] (None where it misses the grid).
+    fn span(&self, x: [f64; 2], y: [f64; 2], margin: usize) -> Option<SpanIj> {
         let span = |lo: f64, hi: f64, o: f64, n: usize| {
             let a = ((lo - o) / self.cell).floor();
             let b = ((hi - o) / self.cell).floor();
@@ -1077,15 +1110,10 @@ impl Bins {
             let b = (b.min(n as f64 - 1.0) as usize + margin).min(n - 1);
             Some((a, b))
         };
-        let (Some((i0, i1)), Some((j0, j1))) = (
-            span(x[0], x[1], self.origin[0], self.n[0]),
-            span(y[0], y[1], self.origin[1], self.n[1]),
-        ) else {
-            return;
-        };
-        for j in j0..=j1 {
-            out.extend((i0..=i1).map(|i| i + self.n[0] * j));
-        }
+        Some((
+            span(x[0], x[1], self.origin[0], self.n[0])?,
+            span(y[0], y[1], self.origin[1], self.n[1])?,
+        ))
     }
 
     fn put(&mut self, row: usize, c: usize) {

@@ -220,6 +220,9 @@ pub struct Engine<'a> {
     bins: Bins,
     /// Scratch list of active marker rows.
     rows: Vec<u32>,
+    /// Scratch: a copy of every IMZ's geometry ([`copy_geoms`]), kept between steps so that
+    /// its allocations are reused.
+    geoms: Vec<ImzGeom>,
     /// Plan cells (of `bins`) where markers moved, appeared or left since the air gap was
     /// last recorded.
     moved_cells: Vec<bool>,
@@ -333,6 +336,7 @@ impl<'a> Engine<'a> {
                 grid_cell(bm, res.marker_spacing),
             ),
             rows: Vec::new(),
+            geoms: Vec::new(),
             moved_cells: Vec::new(),
             all_moved: true,
             air_col: vec![0.0; bm.dims[0] * bm.dims[1]],
@@ -377,23 +381,21 @@ impl<'a> Engine<'a> {
         grid_cell(&self.scene.blocks, self.resolution.marker_spacing)
     }
 
-    /// Rows (ascending) of the markers binned in the cells that the IMZs `which` can
-    /// reach (their plan bounding boxes and one cell around), into `self.rows`; returns the
-    /// cells.
-    fn rows_near(
-        &mut self,
-        geoms: &[ImzGeom],
-        which: &[usize],
-        mut cells: Vec<usize>,
-    ) -> Vec<usize> {
-        for &d in which {
+    /// The cells that the IMZs `which` can reach (their plan bounding boxes and one cell
+    /// around), added to `cells`, sorted and without repeats.
+    fn cells_near(&self, geoms: &[ImzGeom], which: &[usize], cells: Vec<usize>) -> Vec<usize> {
+        let rects = which.iter().map(|&d| {
             let g = &geoms[d];
             let r = g.max_radius();
-            self.bins
-                .cells_in([g.x - r, g.x + r], [g.y - r, g.y + r], 1, &mut cells);
-        }
-        cells.sort_unstable();
-        cells.dedup();
+            ([g.x - r, g.x + r], [g.y - r, g.y + r])
+        });
+        self.bins.cells_of(rects, 1, &cells)
+    }
+
+    /// Rows (ascending) of the markers binned in the cells that the IMZs `which` can
+    /// reach ([`Engine::cells_near`]), into `self.rows`; returns the cells.
+    fn rows_near(&mut self, geoms: &[ImzGeom], which: &[usize], cells: Vec<usize>) -> Vec<usize> {
+        let cells = self.cells_near(geoms, which, cells);
         self.bins.rows_in(&cells, &mut self.rows);
         cells
     }
@@ -495,7 +497,8 @@ impl<'a> Engine<'a> {
 
     fn step(&mut self, period: i64, row: &[f64], steps: usize, drawing: &[usize]) {
         let bm = &self.scene.blocks;
-        let geoms: Vec<ImzGeom> = self.imzs.iter().map(|m| m.geom.clone()).collect();
+        let mut geoms = std::mem::take(&mut self.geoms);
+        copy_geoms(&self.imzs, &mut geoms);
         let all: Vec<usize> = (0..geoms.len()).collect();
         let cell = self.grid_cell();
         let grid = ImzGrid::build(&geoms, &all, self.extent.0, self.extent.1, cell);
@@ -526,25 +529,30 @@ impl<'a> Engine<'a> {
         self.engulf(period, drawing);
         let mut cells = Vec::new();
         self.bins.add_new(&self.markers, &mut cells);
-        let geoms: Vec<ImzGeom> = self.imzs.iter().map(|m| m.geom.clone()).collect();
+        copy_geoms(&self.imzs, &mut geoms);
         // The levels whose windows end now, and the IMZs that drew in each window.
         let due = cadence.due(u);
         let active = self.active_per_level(u, due, drawing, true);
         // The active set: only markers binned where a drawing IMZ reaches can move, and of
         // those only the ones whose level is due.
-        let mut cells = self.rows_near(&geoms, &active[due as usize], cells);
-        let mut rows = std::mem::take(&mut self.rows);
         let grids = self.level_grids(&geoms, &active);
-        if cadence.max_level > 0 {
+        let (mut cells, rows) = if cadence.max_level > 0 {
             // A marker steps when its level is due and an IMZ that drew in its window
-            // reaches its cell (elsewhere its step would be zero).
+            // reaches its cell (elsewhere its step would be zero). Such a marker is binned
+            // in a cell near the IMZs of the longest window due (its level's IMZs are among
+            // them), so the test over every row, in parallel, finds the rows the bins of
+            // those cells would list and filter; the serial listing cost more at mine scale.
+            let cells = self.cells_near(&geoms, &active[due as usize], cells);
             let mk = &self.markers;
-            rows = rows
-                .par_iter()
-                .copied()
+            let rows: Vec<u32> = (0..mk.len() as u32)
+                .into_par_iter()
                 .filter(|&k| mk.level[k as usize] <= due && reached(mk, k, &grids))
                 .collect();
-        }
+            (cells, rows)
+        } else {
+            let cells = self.rows_near(&geoms, &active[due as usize], cells);
+            (cells, std::mem::take(&mut self.rows))
+        };
         self.marker_steps += rows.len() as u64;
         let owned = self.window_motions(&active);
         let motion = level_motions(&self.imzs, &is_drawing, &owned);
@@ -568,6 +576,7 @@ impl<'a> Engine<'a> {
             markers::move_rows(&mut self.markers, &fields, extra, &rows, c)
         };
         drop(fields);
+        self.geoms = geoms;
         self.restart_windows(&active);
         self.after_move(period, rows, &mut cells, drawn);
     }
@@ -602,7 +611,7 @@ impl<'a> Engine<'a> {
     fn level_grids(&self, geoms: &[ImzGeom], active: &[Vec<usize>]) -> Vec<ImzGrid> {
         let cell = self.grid_cell();
         active
-            .iter()
+            .par_iter()
             .map(|a| ImzGrid::build(geoms, a, self.extent.0, self.extent.1, cell))
             .collect()
     }
@@ -616,7 +625,11 @@ impl<'a> Engine<'a> {
             .map(|(l, a)| {
                 let mut v = vec![Vec::new(); self.imzs.len()];
                 if l > 0 {
-                    a.iter().for_each(|&d| v[d] = self.imzs[d].window_motion(l));
+                    let got: Vec<Vec<DiskMotion>> = a
+                        .par_iter()
+                        .map(|&d| self.imzs[d].window_motion(l))
+                        .collect();
+                    a.iter().zip(got).for_each(|(&d, w)| v[d] = w);
                 }
                 v
             })
@@ -681,17 +694,11 @@ impl<'a> Engine<'a> {
         let top = cadence.max_level;
         let active = self.active_per_level(u, top, &[], false);
         // Markers no IMZ of an open window reaches have nothing to catch up.
-        let mut near: Vec<usize> = active.concat();
-        near.sort_unstable();
-        near.dedup();
         let geoms: Vec<ImzGeom> = self.imzs.iter().map(|m| m.geom.clone()).collect();
-        self.rows_near(&geoms, &near, Vec::new());
         let grids = self.level_grids(&geoms, &active);
         let mk = &self.markers;
-        let lagging: Vec<u32> = self
-            .rows
-            .par_iter()
-            .copied()
+        let lagging: Vec<u32> = (0..mk.len() as u32)
+            .into_par_iter()
             .filter(|&k| mk.level[k as usize] > aligned && reached(mk, k, &grids))
             .collect();
         if lagging.is_empty() {
@@ -1331,6 +1338,23 @@ impl<'a> Engine<'a> {
             }
         }
         self.out
+    }
+}
+
+/// Copies every IMZ's geometry into `into`, reusing its allocations (the marker pass and
+/// the IMZs' neighbours read a snapshot, taken twice a step).
+fn copy_geoms(imzs: &[Imz], into: &mut Vec<ImzGeom>) {
+    into.resize_with(imzs.len(), ImzGeom::default);
+    for (g, m) in into.iter_mut().zip(imzs) {
+        let ImzGeom {
+            x,
+            y,
+            z0,
+            h,
+            radius,
+        } = &m.geom;
+        (g.x, g.y, g.z0, g.h) = (*x, *y, *z0, *h);
+        g.radius.clone_from(radius);
     }
 }
 
