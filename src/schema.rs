@@ -649,6 +649,27 @@ pub const ALL: &[TableSpec] = &[
     SWEEP,
 ];
 
+/// The drawpoint file's columns in MassFlow's fixed order (`TableSpec::massflow_layout`).
+pub const MASSFLOW_DRAWPOINTS: &[&str] = &["DPName", "X", "Y", "Z", "DBID", "DBType"];
+
+/// The drawbell file's 14 documented columns in MassFlow's fixed order.
+pub const MASSFLOW_DRAWBELLS: &[&str] = &[
+    "BellName",
+    "DDWidth",
+    "DDHeight",
+    "BellHeight",
+    "SideAngle",
+    "EndAngle",
+    "DFZDepth",
+    "DFZWidth",
+    "DFZHeight",
+    "SideHoleAngle",
+    "CrossCutSpacing",
+    "SublevelSpacing",
+    "Burden",
+    "RetreatAz",
+];
+
 /// Look a table up by name.
 pub fn table(name: &str) -> Option<&'static TableSpec> {
     ALL.iter().find(|t| t.name == name)
@@ -690,6 +711,29 @@ impl TableSpec {
             "description".to_string(),
             self.description.to_string(),
         )])))
+    }
+
+    /// Documented MassFlow columns of this table that caveflow recognises but does not
+    /// use: the readers skip them with one note per file (not one warning per column, and
+    /// never as grades). The drawbell geometry beyond the opening (the engine's IMZ starts
+    /// at the drawpoint), and the block model's columns MassFlow computes itself.
+    pub fn massflow_unused(&self) -> &'static [&'static str] {
+        match self.name {
+            "block_model" => &["MeanDiaDyn", "SDDia", "Pmin", "Kexp"],
+            "drawbells" => &MASSFLOW_DRAWBELLS[3..],
+            _ => &[],
+        }
+    }
+
+    /// MassFlow's fixed column order for this table, where MassFlow reads it by position
+    /// (its header strings are not significant): a file with this many columns and headers
+    /// that are not all recognised is read by position.
+    pub fn massflow_layout(&self) -> Option<&'static [&'static str]> {
+        match self.name {
+            "drawpoints" => Some(MASSFLOW_DRAWPOINTS),
+            "drawbells" => Some(MASSFLOW_DRAWBELLS),
+            _ => None,
+        }
     }
 
     /// Names of all fixed fields.
