@@ -33,7 +33,7 @@ fn close(a: f64, b: f64) -> bool {
 
 /// Asserts that some problem has this file, row, column and rule, and that its Display
 /// names all four. Returns it for further checks on the message.
-fn expect<'a>(
+pub(crate) fn expect<'a>(
     ps: &'a Problems,
     file: &str,
     row: Option<usize>,
