@@ -179,7 +179,11 @@ pub(crate) fn names_field(header: &str, field: &FieldSpec) -> bool {
 /// Header names match a field's canonical name or any alias, case-insensitively. Columns
 /// that match no field become grade columns ([`Table::extra`]) when the spec has extra
 /// columns, and must then be numeric (`mistyped` otherwise); for other specs they are
-/// ignored with a warning. Every problem in the file is reported, not just the first.
+/// ignored with a warning. Documented MassFlow columns caveflow does not use
+/// ([`TableSpec::massflow_unused`]) are skipped with one note for the file. A drawpoint or
+/// drawbell file with MassFlow's column count and unfamiliar headers is read by position
+/// ([`TableSpec::massflow_layout`]), with a note. Every problem in the file is reported,
+/// not just the first.
 pub fn read_table(path: &Path, spec: &TableSpec) -> Result<Table, Problems> {
     let mut problems = Collector::default();
     let t = read_table_into(path, spec, &mut problems);
