@@ -117,11 +117,12 @@ pub const BLOCK_MODEL: TableSpec = TableSpec {
         f("z", F64, "m", "Block centre Elevation", true, &["Elevation", "ZC", "Z"]),
         f("block_id", I64, "-", "Unique block identifier", true, &["BlockID", "id"]),
         f("cave_period", I64, "-", "First period in which the block is caved and free to flow (0 = caved before the first period; larger than the schedule = never)", false, &["CavePeriod"]),
+        f("cave_period_dyn", I64, "-", "MassFlow CavePeriodDyn: the cave period as MassFlow's dynamic caving updated it; where given and different from cave_period, it is the one used", false, &["CavePeriodDyn"]),
         f("solids_density", F64, "t/m3", "Density of the intact rock solids, rho_s", true, &["SolidsDen", "density"]),
         f("porosity", F64, "-", "In-situ (stagnant caved) porosity n0, a fraction in [0,1)", true, &["InSituPor", "n0"]),
         f("max_porosity", F64, "-", "Dilated porosity n1 inside IMZs (MassFlow MaxPor), a fraction in [n0,1)", true, &["MaxPor", "n1"]),
         f("friction_angle", F64, "deg", "Friction angle phi of the caved material, in (0,90)", true, &["FricAng", "phi"]),
-        f("frag_size", F64, "m", "Mean primary fragment diameter d (used when no Weibull parameters are given)", false, &["d50", "dbar"]),
+        f("frag_size", F64, "m", "Mean primary fragment diameter d (used when no Weibull parameters are given; otherwise checked against their mean)", false, &["MeanDia", "d50", "dbar"]),
         f("frag_shape", F64, "-", "Weibull shape alpha of primary fragment size (MassFlow PriFragA); s = beta (-ln(1-u))^(1/alpha)", false, &["PriFragA"]),
         f("frag_scale", F64, "m", "Weibull scale beta of primary fragment size (MassFlow PriFragB)", false, &["PriFragB"]),
         f("tensile_strength", F64, "kPa", "Fragment tensile strength sigma_t, used by secondary fragmentation (default 0.1 x UCS; a block with neither does not break)", false, &["TenStr"]),
@@ -649,6 +650,27 @@ pub const ALL: &[TableSpec] = &[
     SWEEP,
 ];
 
+/// The drawpoint file's columns in MassFlow's fixed order (`TableSpec::massflow_layout`).
+pub const MASSFLOW_DRAWPOINTS: &[&str] = &["DPName", "X", "Y", "Z", "DBID", "DBType"];
+
+/// The drawbell file's 14 documented columns in MassFlow's fixed order.
+pub const MASSFLOW_DRAWBELLS: &[&str] = &[
+    "BellName",
+    "DDWidth",
+    "DDHeight",
+    "BellHeight",
+    "SideAngle",
+    "EndAngle",
+    "DFZDepth",
+    "DFZWidth",
+    "DFZHeight",
+    "SideHoleAngle",
+    "CrossCutSpacing",
+    "SublevelSpacing",
+    "Burden",
+    "RetreatAz",
+];
+
 /// Look a table up by name.
 pub fn table(name: &str) -> Option<&'static TableSpec> {
     ALL.iter().find(|t| t.name == name)
@@ -690,6 +712,29 @@ impl TableSpec {
             "description".to_string(),
             self.description.to_string(),
         )])))
+    }
+
+    /// Documented MassFlow columns of this table that caveflow recognises but does not
+    /// use: the readers skip them with one note per file (not one warning per column, and
+    /// never as grades). The drawbell geometry beyond the opening (the engine's IMZ starts
+    /// at the drawpoint), and the block model's columns MassFlow computes itself.
+    pub fn massflow_unused(&self) -> &'static [&'static str] {
+        match self.name {
+            "block_model" => &["MeanDiaDyn", "SDDia", "Pmin", "Kexp"],
+            "drawbells" => &MASSFLOW_DRAWBELLS[3..],
+            _ => &[],
+        }
+    }
+
+    /// MassFlow's fixed column order for this table, where MassFlow reads it by position
+    /// (its header strings are not significant): a file with this many columns and headers
+    /// that are not all recognised is read by position.
+    pub fn massflow_layout(&self) -> Option<&'static [&'static str]> {
+        match self.name {
+            "drawpoints" => Some(MASSFLOW_DRAWPOINTS),
+            "drawbells" => Some(MASSFLOW_DRAWBELLS),
+            _ => None,
+        }
     }
 
     /// Names of all fixed fields.

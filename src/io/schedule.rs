@@ -13,7 +13,9 @@
 //!     follow POSIX `strptime`: 69–99 are 1969–1999, 00–68 are 2000–2068;
 //!   - `Name%Days`, e.g. `Q1%90.5`: the period is named `Name` and lasts `Days` days.
 //!
-//!   An empty cell is zero tonnes.
+//!   An empty cell is zero tonnes. Periods are positional, as in MassFlow: the period
+//!   number is the identity and names may repeat (the manual's `DPName,7,7,7,7` is four
+//!   periods, each named `7` and 7 days long).
 //!
 //! The layout is detected from the header: a file with a period column and a tonnes column
 //! (by the long form's names and aliases) is long; anything else is wide. The wide form is
@@ -193,16 +195,6 @@ fn read_wide(
     };
     let mut periods = Periods::default();
     for (k, h) in columns.iter().enumerate().skip(1) {
-        if columns[..k].iter().any(|e| e.eq_ignore_ascii_case(h)) {
-            let message = format!("the period header `{h}` appears more than once");
-            problems.push(Problem::at(
-                file,
-                Some(0),
-                Some(h),
-                "duplicate-header",
-                message,
-            ));
-        }
         match parse_period_header(h) {
             Ok((name, days)) => {
                 periods.id.push(k as i64);

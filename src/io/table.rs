@@ -179,7 +179,11 @@ pub(crate) fn names_field(header: &str, field: &FieldSpec) -> bool {
 /// Header names match a field's canonical name or any alias, case-insensitively. Columns
 /// that match no field become grade columns ([`Table::extra`]) when the spec has extra
 /// columns, and must then be numeric (`mistyped` otherwise); for other specs they are
-/// ignored with a warning. Every problem in the file is reported, not just the first.
+/// ignored with a warning. Documented MassFlow columns caveflow does not use
+/// ([`TableSpec::massflow_unused`]) are skipped with one note for the file. A drawpoint or
+/// drawbell file with MassFlow's column count and unfamiliar headers is read by position
+/// ([`TableSpec::massflow_layout`]), with a note. Every problem in the file is reported,
+/// not just the first.
 pub fn read_table(path: &Path, spec: &TableSpec) -> Result<Table, Problems> {
     let mut problems = Collector::default();
     let t = read_table_into(path, spec, &mut problems);
@@ -274,8 +278,34 @@ impl Plan {
         let mut builders: Vec<Builder> = Vec::new();
         let mut warnings = Vec::new();
         let mut seen: Vec<(String, Option<&'static str>)> = Vec::new();
+        let layout = positional(headers, spec);
+        if let Some(layout) = layout {
+            let written: Vec<String> = headers.iter().map(|h| format!("`{}`", h.trim())).collect();
+            warnings.push(format!(
+                "{file}: the headers {} are not all MassFlow's; as MassFlow does, the {} columns are read by position as {}",
+                written.join(", "),
+                layout.len(),
+                layout.join(", ")
+            ));
+        }
+        let mut unused = Vec::new();
         for (i, raw) in headers.iter().enumerate() {
-            let name = raw.trim();
+            // By position, the documented name decides the column; messages still use the
+            // header as written (or the documented name where the header is empty).
+            let (key, name) = match layout.and_then(|l| l.get(i)) {
+                Some(&l) if raw.trim().is_empty() => (l, l),
+                Some(&l) => (l, raw.trim()),
+                None => (raw.trim(), raw.trim()),
+            };
+            if let Some(u) = spec
+                .massflow_unused()
+                .iter()
+                .find(|u| u.eq_ignore_ascii_case(key))
+            {
+                unused.push(*u);
+                targets.push((Target::Ignored, 0));
+                continue;
+            }
             if name.is_empty() {
                 warnings.push(format!(
                     "{file}: column {} has no header and was ignored",
@@ -284,9 +314,9 @@ impl Plan {
                 targets.push((Target::Ignored, 0));
                 continue;
             }
-            let field = spec.fields.iter().find(|f| names_field(name, f));
+            let field = spec.fields.iter().find(|f| names_field(key, f));
             let clash = seen.iter().find(|(h, f)| {
-                h.eq_ignore_ascii_case(name) || (field.is_some() && *f == field.map(|f| f.name))
+                h.eq_ignore_ascii_case(key) || (field.is_some() && *f == field.map(|f| f.name))
             });
             if let Some((first, _)) = clash {
                 let what = match field {
@@ -305,7 +335,7 @@ impl Plan {
                 targets.push((Target::Ignored, 0));
                 continue;
             }
-            seen.push((name.to_string(), field.map(|f| f.name)));
+            seen.push((key.to_string(), field.map(|f| f.name)));
             let target = match (field, &spec.extra) {
                 (Some(f), _) => Target::Field(f),
                 (None, Some(_)) => Target::Extra,
@@ -321,6 +351,12 @@ impl Plan {
                 builders.push(Builder::new(name, target));
             }
             targets.push((target, builders.len().saturating_sub(1)));
+        }
+        if !unused.is_empty() {
+            warnings.push(format!(
+                "{file}: MassFlow column(s) {} recognised but not used by caveflow (ignored)",
+                unused.join(", ")
+            ));
         }
         for f in spec.fields.iter().filter(|f| f.required) {
             if !targets
@@ -434,6 +470,39 @@ impl Plan {
             bad,
         }
     }
+}
+
+/// The spec's MassFlow layout when a file is to be read by position, as MassFlow reads it:
+/// it has exactly the layout's number of columns, some header is not one caveflow knows
+/// (no field name or alias, no unused MassFlow column), and no known header stands at
+/// another column's place (`name,x,y,z,width,comment` is read by name).
+fn positional(headers: &[String], spec: &TableSpec) -> Option<&'static [&'static str]> {
+    let layout = spec.massflow_layout()?;
+    if headers.len() != layout.len() {
+        return None;
+    }
+    // What a header names: a field, an unused MassFlow column, or nothing known.
+    let known = |h: &str| -> Option<&'static str> {
+        spec.fields
+            .iter()
+            .find(|f| names_field(h, f))
+            .map(|f| f.name)
+            .or_else(|| {
+                spec.massflow_unused()
+                    .iter()
+                    .find(|u| u.eq_ignore_ascii_case(h))
+                    .copied()
+            })
+    };
+    let mut unfamiliar = false;
+    for (h, l) in headers.iter().zip(layout) {
+        match known(h.trim()) {
+            None => unfamiliar = true,
+            Some(k) if Some(k) != known(l) => return None,
+            Some(_) => {}
+        }
+    }
+    unfamiliar.then_some(layout)
 }
 
 /// Accumulates one typed column.

@@ -13,6 +13,11 @@
 //!   UTF-8 (`not-utf8`).
 //! - A header of one field that splits on a pipe, a colon or spaces is `wrong-delimiter`
 //!   (every table has two columns or more), and the file is not read further.
+//! - MassFlow's preamble, a first line `Delimiter: <anything>;` ahead of the header (its
+//!   tab-delimited example projects begin with `Delimiter: r;`), is skipped; the delimiter
+//!   is still detected from the header. A first line whose first word is `Delimiter` but
+//!   that is not of that form (`Delimiter r`, `Delimiter: r` without the `;`) is
+//!   `delimiter-line`, and the file is not read further.
 
 use csv::{ByteRecord, ReaderBuilder, Trim};
 
@@ -25,6 +30,8 @@ pub(crate) struct Text {
     pub file: String,
     bytes: Vec<u8>,
     delimiter: u8,
+    /// A first line that looks like MassFlow's `Delimiter: …;` preamble but is not one.
+    bad_preamble: Option<String>,
 }
 
 impl Text {
@@ -33,11 +40,25 @@ impl Text {
         if bytes.starts_with(b"\xEF\xBB\xBF") {
             bytes.drain(..3);
         }
+        let mut bad_preamble = None;
+        match preamble(&bytes) {
+            Preamble::None => {}
+            Preamble::Valid(len) => {
+                bytes.drain(..len);
+            }
+            Preamble::Invalid(line) => {
+                bad_preamble = Some(match line.char_indices().nth(60) {
+                    Some((i, _)) => format!("{}…", &line[..i]),
+                    None => line,
+                })
+            }
+        }
         let delimiter = detect_delimiter(&bytes);
         Text {
             file: file.to_string(),
             bytes,
             delimiter,
+            bad_preamble,
         }
     }
 
@@ -53,6 +74,13 @@ impl Text {
     /// The header names, trimmed. None (with an `empty-table` problem) when the file holds
     /// no header line at all.
     pub(crate) fn headers(&self, problems: &mut Collector) -> Option<Vec<String>> {
+        if let Some(line) = &self.bad_preamble {
+            let message = format!(
+                "the first line `{line}` starts like MassFlow's delimiter line but is not one: it must read `Delimiter: <delimiter>;` (a colon after Delimiter, a semicolon at the end), or be removed so that the header comes first"
+            );
+            problems.push(Problem::file(&self.file, "delimiter-line", message));
+            return None;
+        }
         let mut rec = ByteRecord::new();
         match self.reader().read_byte_record(&mut rec) {
             Ok(true) => {}
@@ -226,6 +254,42 @@ fn foreign_delimiter(header: &str) -> Option<&'static str> {
     }
 }
 
+/// What the first line of a file is, as far as MassFlow's `Delimiter: …;` preamble goes.
+#[derive(Debug, PartialEq)]
+enum Preamble {
+    /// An ordinary first line (the header).
+    None,
+    /// A delimiter line, this many bytes long with its line break.
+    Valid(usize),
+    /// A first line whose first word is `Delimiter` but that is not `Delimiter: …;`.
+    Invalid(String),
+}
+
+/// Recognises MassFlow's preamble line `Delimiter: <any text>;` (the word case-insensitive,
+/// spaces allowed around the colon and after the semicolon).
+fn preamble(bytes: &[u8]) -> Preamble {
+    const WORD: &[u8] = b"delimiter";
+    let end = bytes
+        .iter()
+        .position(|&b| b == b'\n')
+        .map_or(bytes.len(), |i| i + 1);
+    let line = &bytes[..end];
+    let text = String::from_utf8_lossy(line);
+    let trimmed = text.trim();
+    let starts = trimmed.len() >= WORD.len()
+        && trimmed.as_bytes()[..WORD.len()].eq_ignore_ascii_case(WORD)
+        && !trimmed[WORD.len()..].starts_with(|c: char| c.is_ascii_alphanumeric() || c == '_');
+    if !starts {
+        return Preamble::None;
+    }
+    let rest = trimmed[WORD.len()..].trim_start();
+    if rest.starts_with(':') && rest.len() > 1 && rest.ends_with(';') {
+        Preamble::Valid(end)
+    } else {
+        Preamble::Invalid(trimmed.to_string())
+    }
+}
+
 /// Comma, tab or semicolon: whichever occurs most in the first line outside quotes.
 fn detect_delimiter(bytes: &[u8]) -> u8 {
     let mut counts = [0usize; 3];
@@ -248,4 +312,30 @@ fn detect_delimiter(bytes: &[u8]) -> u8 {
         }
     }
     delimiters[best]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn preamble_lines() {
+        assert_eq!(preamble(b"Delimiter: r;\nA\tB\n"), Preamble::Valid(14));
+        assert_eq!(preamble(b"delimiter :\t; \r\nA\tB\n"), Preamble::Valid(16));
+        assert_eq!(preamble(b"Delimiter:;"), Preamble::Valid(11));
+        assert_eq!(preamble(b"x,y\n"), Preamble::None);
+        assert_eq!(preamble(b"DelimiterX,y\n"), Preamble::None);
+        assert_eq!(
+            preamble(b"Delimiter r\nA\n"),
+            Preamble::Invalid("Delimiter r".into())
+        );
+        assert_eq!(
+            preamble(b"Delimiter: r\nA\n"),
+            Preamble::Invalid("Delimiter: r".into())
+        );
+        assert_eq!(
+            preamble(b"Delimiter"),
+            Preamble::Invalid("Delimiter".into())
+        );
+    }
 }

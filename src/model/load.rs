@@ -26,7 +26,13 @@
 //!   (`mixed-block-size` names the first that does not; `off-grid` names the rows).
 //! - Defaults: `cave_period` 0; `perc_k1` 11, `perc_k2` 4.5 (summary §7.3), `perc_vmr`
 //!   0.5 m (MassFlow's default; the summary's spread uses the bed's fragment size d_b).
-//! - `frag` = `frag_size`, else the Weibull mean `frag_scale · Γ(1 + 1/frag_shape)`.
+//! - `cave_period` = `cave_period_dyn` (MassFlow CavePeriodDyn) where given, else
+//!   `cave_period`; a warning counts the blocks where the two differ.
+//! - `frag` = `frag_size` (MassFlow MeanDia) where the Weibull parameters are absent, else
+//!   their mean `frag_scale · Γ(1 + 1/frag_shape)` (the engine draws primary sizes from
+//!   them). A `frag_size` given with them is kept when it lies within
+//!   [`FRAG_MEAN_TOLERANCE`] (10 %) of their mean; beyond it the Weibull mean is used, and
+//!   one warning names the first such row and the count.
 //! - `tensile` = `tensile_strength`, else the Weibull mean of `tensile_shape`/`tensile_scale`,
 //!   else 0.1 × `ucs` (MassFlow's ratio), else NaN.
 //! - Lithologies are numbered in order of first appearance (one lithology `default` when the
@@ -104,6 +110,11 @@ pub const DEFAULT_PERC_VMR: f64 = 0.5;
 /// Tensile strength as a share of UCS when neither it nor its Weibull parameters are given
 /// (MassFlow's default ratio).
 pub const TENSILE_UCS_RATIO: f64 = 0.1;
+/// Relative difference between a given mean fragment size (MassFlow MeanDia) and the mean
+/// of the block's Weibull parameters beyond which the loader warns: 10 %, well above the
+/// rounding of a size written to two or three figures, well below a size from another
+/// fragmentation estimate.
+pub const FRAG_MEAN_TOLERANCE: f64 = 0.1;
 /// Largest block grid (cells) accepted. A grid this size already takes 1 GiB of index; a
 /// larger one almost always means a stray coordinate.
 pub const MAX_GRID_CELLS: usize = 1 << 28;
@@ -428,6 +439,24 @@ impl Loader {
             Some(c) => c.iter().map(|c| c.unwrap_or(0)).collect(),
             None => vec![0; n],
         };
+        // MassFlow's CavePeriodDyn starts as CavePeriod; where the two differ, the dynamic
+        // value is the one MassFlow uses.
+        if let Some(dynamic) = t.i64("cave_period_dyn").filter(|v| v.len() == n) {
+            let mut differ = 0;
+            for (c, d) in m.cave_period.iter_mut().zip(dynamic) {
+                if let Some(d) = *d {
+                    differ += usize::from(*c != d);
+                    *c = d;
+                }
+            }
+            if differ > 0 {
+                self.warnings.push(format!(
+                    "{file}: {} differs from {} in {differ} block(s); the dynamic cave period is used",
+                    t.header("cave_period_dyn"),
+                    t.header("cave_period")
+                ));
+            }
+        }
 
         let (hd, h0, h1, hphi) = (
             t.header("solids_density"),
@@ -517,11 +546,29 @@ impl Loader {
         if !(t.has("frag_size") || (t.has("frag_shape") && t.has("frag_scale"))) {
             self.problem(file, None, Some("frag_size"), "missing-column", "the block model needs frag_size, or frag_shape and frag_scale (MassFlow PriFragA and PriFragB)".into());
         } else {
+            // (first row, count, given, Weibull mean) of rows whose mean size disagrees with
+            // their Weibull mean by more than FRAG_MEAN_TOLERANCE.
+            let mut disagree: Option<(usize, usize, f64, f64)> = None;
             for i in 0..n {
-                let f = if !size[i].is_nan() {
+                let weibull = !shape[i].is_nan() && !scale[i].is_nan();
+                let f = if weibull {
+                    // As in MassFlow, the Weibull parameters decide where given (the engine
+                    // draws primary sizes from them); a mean size given with them is kept
+                    // when it agrees with their mean (it is that mean, as written).
+                    let mean = weibull_mean(shape[i], scale[i]);
+                    let d = size[i];
+                    let valid = shape[i] > 0.0 && scale[i] > 0.0 && mean.is_finite();
+                    if !valid || d.is_nan() {
+                        mean
+                    } else if (d - mean).abs() > FRAG_MEAN_TOLERANCE * mean {
+                        let e = disagree.get_or_insert((i, 0, d, mean));
+                        e.1 += 1;
+                        mean
+                    } else {
+                        d
+                    }
+                } else if !size[i].is_nan() {
                     size[i]
-                } else if !shape[i].is_nan() && !scale[i].is_nan() {
-                    weibull_mean(shape[i], scale[i])
                 } else if ["frag_size", "frag_shape", "frag_scale"]
                     .iter()
                     .any(|c| t.bad(c, i))
@@ -543,7 +590,7 @@ impl Loader {
                     );
                     f64::NAN
                 };
-                if size[i].is_nan() && shape[i] > 0.0 && scale[i] > 0.0 && !f.is_finite() {
+                if weibull && shape[i] > 0.0 && scale[i] > 0.0 && !f.is_finite() {
                     self.problem(
                         file,
                         at(i),
@@ -556,17 +603,23 @@ impl Loader {
                     );
                 }
                 if f.is_finite() && f > MAX_FRAG_SIZE {
-                    let h = t.header(if size[i].is_nan() {
-                        "frag_scale"
-                    } else {
-                        "frag_size"
-                    });
+                    let h = t.header(if weibull { "frag_scale" } else { "frag_size" });
                     self.problem(file, at(i), Some(h), "units-mm", format!(
                         "mean fragment size {f} m is not plausible (more than {MAX_FRAG_SIZE} m): it looks like mm; divide by 1000 ({} m)",
                         f / 1000.0
                     ));
                 }
                 m.frag.push(f);
+            }
+            if let Some((i, count, d, mean)) = disagree {
+                self.warnings.push(format!(
+                    "{file}: {} disagrees with the Weibull mean of {}/{} by more than {:.0}% in {count} block(s), the first at row {} ({d} m against {mean:.4} m); the Weibull parameters are used",
+                    t.header("frag_size"),
+                    t.header("frag_shape"),
+                    t.header("frag_scale"),
+                    100.0 * FRAG_MEAN_TOLERANCE,
+                    t.row(i)
+                ));
             }
         }
         m.frag_shape = shape.to_vec();

@@ -8,6 +8,7 @@ mod cli;
 mod dataset;
 mod engine;
 mod io;
+mod massflow;
 mod mechanisms;
 mod output;
 mod props;

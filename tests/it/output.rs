@@ -864,7 +864,8 @@ fn scene_written_as_input_tables() {
     let fixed: Vec<&str> = schema::BLOCK_MODEL
         .field_names()
         .into_iter()
-        .filter(|f| !["tensile_shape", "tensile_scale"].contains(f))
+        // Resolved values are written: the tensile strength, the cave period in use.
+        .filter(|f| !["tensile_shape", "tensile_scale", "cave_period_dyn"].contains(f))
         .collect();
     assert_schema(
         &batch,
