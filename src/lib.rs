@@ -6,7 +6,8 @@
 //! `schema` (table contracts) → [`io`] (read and validate tables) → [`model`] (block model,
 //! drawpoints, schedule, scenario) → [`engine`] (IMZs, markers: one module per mechanism) →
 //! [`output`] (Parquet writers, manifest, charts) → `analysis` (reconcile, calibrate) →
-//! [`cli`]. No module reaches back up. [`docs`] holds the notes on the method, its
+//! [`cli`]. No module reaches back up (the integration test `layering` reads every `crate::`
+//! path in `src/` and fails on one). [`docs`] holds the notes on the method, its
 //! validation and its performance.
 #![warn(missing_docs)]
 

@@ -9,11 +9,13 @@
 //! [`model::load`](crate::model::load).
 
 mod parquet;
+mod periods;
 mod problem;
 mod schedule;
 mod table;
 mod text;
 
+pub use periods::Periods;
 pub(crate) use problem::Collector;
 pub use problem::{Problem, Problems, KEEP_PER_RULE};
 pub(crate) use schedule::read_schedule_into;

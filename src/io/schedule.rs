@@ -29,7 +29,7 @@ use super::table::{
     read_text, sha256_hex, Cell, Table,
 };
 use super::text::Text;
-use crate::model::Periods;
+use super::Periods;
 use crate::schema::SCHEDULE;
 
 /// Which layout a schedule file had.

@@ -1,5 +1,9 @@
 //! Drawpoints, periods and the draw schedule.
 
+// The periods are read by the schedule reader (a wide schedule's headers name them), so
+// they are defined in `io`, which comes first.
+pub use crate::io::Periods;
+
 /// Drawpoints, column-wise.
 #[derive(Debug, Clone, Default)]
 pub struct Drawpoints {
@@ -29,43 +33,6 @@ impl Drawpoints {
     /// Index of a drawpoint by name.
     pub fn find(&self, name: &str) -> Option<usize> {
         self.name.iter().position(|n| n == name)
-    }
-}
-
-/// Periods, in order.
-#[derive(Debug, Clone, Default)]
-pub struct Periods {
-    /// Period numbers, strictly increasing.
-    pub id: Vec<i64>,
-    /// Names.
-    pub name: Vec<String>,
-    /// Lengths, days.
-    pub days: Vec<f64>,
-    /// Start of each period, days since 1970-01-01 (from the periods table's optional
-    /// `start_date` column); None when the periods have no calendar. Used to map dated
-    /// production records to periods: period k covers [start_k, start_k + days_k).
-    pub start: Option<Vec<f64>>,
-}
-
-impl Periods {
-    /// Number of periods.
-    pub fn len(&self) -> usize {
-        self.id.len()
-    }
-    /// True when empty.
-    pub fn is_empty(&self) -> bool {
-        self.id.is_empty()
-    }
-    /// Index of a period by number.
-    pub fn find(&self, id: i64) -> Option<usize> {
-        self.id.binary_search(&id).ok()
-    }
-    /// Index of the period that holds `day` (days since 1970-01-01), when the periods have
-    /// start dates; None before the first, after the last or in a gap between two.
-    pub fn at_day(&self, day: f64) -> Option<usize> {
-        let start = self.start.as_ref()?;
-        let k = start.partition_point(|&s| s <= day).checked_sub(1)?;
-        (day < start[k] + self.days[k]).then_some(k)
     }
 }
 

@@ -8,6 +8,7 @@ mod cli;
 mod dataset;
 mod engine;
 mod io;
+mod layering;
 mod massflow;
 mod mechanisms;
 mod output;
