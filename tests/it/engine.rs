@@ -892,8 +892,14 @@ fn results_settle_as_resolution_is_refined() {
         "grade changes {:.5} then {:.5}; width changes {:.5} then {:.5}",
         dg[0], dg[1], dw[0], dw[1]
     );
-    assert!(dg[1] < dg[0], "grade: {dg:?}");
-    assert!(dw[1] < dw[0], "width: {dw:?}");
+    // Each halving of h, the spacing and the increment shrinks the change: a first-order
+    // method halves it; the measured ratios are 0.36 (grade) and 0.55 (width), so the
+    // bound is 0.75, and the last change is under 1% of the value (measured 0.40% and
+    // 0.42%): the results have settled at these resolutions.
+    assert!(dg[1] < 0.75 * dg[0], "grade: {dg:?}");
+    assert!(dw[1] < 0.75 * dw[0], "width: {dw:?}");
+    assert!(dg[1] < 0.01 * res[2].0, "grade: {dg:?} at {}", res[2].0);
+    assert!(dw[1] < 0.01 * res[2].1, "width: {dw:?} at {}", res[2].1);
 }
 
 // ---------------------------------------------------------------------------------------

@@ -382,4 +382,13 @@ fn random_valid_scenes_run_finite_and_conserve() {
     if let Err(e) = result {
         panic!("{e}");
     }
+    // The delivery rule must have been exercised, not skipped on every scene (too little
+    // drawn for the markers to resolve it, or an air gap): all 12 of the suite's scenes
+    // check a drawpoint's delivery today; a quarter is the floor.
+    let checked = DELIVERY_CHECKED.load(Ordering::Relaxed);
+    assert!(
+        4 * checked >= n.get() as usize,
+        "delivery checked for only {checked} drawpoints in {} scenes",
+        n.get()
+    );
 }
