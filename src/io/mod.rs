@@ -17,7 +17,7 @@ mod text;
 
 pub use periods::Periods;
 pub(crate) use problem::Collector;
-pub use problem::{Problem, Problems, KEEP_PER_RULE};
+pub use problem::{InputWarning, Problem, Problems, KEEP_PER_RULE};
 pub(crate) use schedule::read_schedule_into;
 pub use schedule::{
     parse_period_header, read_schedule, read_schedule_bytes, ScheduleEntry, ScheduleForm,

@@ -78,6 +78,38 @@ impl fmt::Display for Problem {
     }
 }
 
+/// Something in an input that caveflow reads, but not as written, or not all of (a column
+/// ignored, empty rows skipped, a default taken): the file is usable, and the user should
+/// know. Like a [`Problem`] it carries a stable rule id that tests and tools match on.
+///
+/// Displayed as `drawpoints.csv: [no-opening-width] 2 drawpoint(s) have no opening width …`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct InputWarning {
+    /// File name (last path component) the warning is about.
+    pub file: String,
+    /// Short stable rule id, e.g. `empty-rows`.
+    pub rule: &'static str,
+    /// What was done, and where it helps, how to avoid it.
+    pub message: String,
+}
+
+impl InputWarning {
+    /// A warning about `file`.
+    pub fn new(file: &str, rule: &'static str, message: impl Into<String>) -> InputWarning {
+        InputWarning {
+            file: file.to_string(),
+            rule,
+            message: message.into(),
+        }
+    }
+}
+
+impl fmt::Display for InputWarning {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}: [{}] {}", self.file, self.rule, self.message)
+    }
+}
+
 /// Every problem found in a set of inputs, in the order found. Displayed one per line.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Problems(pub Vec<Problem>);

@@ -23,7 +23,7 @@
 
 use std::path::Path;
 
-use super::problem::{Collector, Problem, Problems};
+use super::problem::{Collector, InputWarning, Problem, Problems};
 use super::table::{
     file_name, is_parquet, names_field, not_a_number, parse_f64, read_bytes, read_table_into,
     read_text, sha256_hex, Cell, Table,
@@ -78,7 +78,7 @@ pub struct ScheduleTable {
     /// Every (period, drawpoint, tonnes) cell, in file order.
     pub entries: Vec<ScheduleEntry>,
     /// Non-fatal remarks.
-    pub warnings: Vec<String>,
+    pub warnings: Vec<InputWarning>,
 }
 
 impl ScheduleTable {
@@ -261,9 +261,13 @@ fn read_wide(
     }
     let mut warnings = Vec::new();
     if let Some(first) = skipped.first() {
-        warnings.push(format!(
-            "{file}: skipped {} empty row(s), the first at row {first}",
-            skipped.len()
+        warnings.push(InputWarning::new(
+            file,
+            "empty-rows",
+            format!(
+                "skipped {} empty row(s), the first at row {first}",
+                skipped.len()
+            ),
         ));
     }
     Some(ScheduleTable {

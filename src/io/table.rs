@@ -17,7 +17,7 @@ use std::path::Path;
 
 use sha2::{Digest, Sha256};
 
-use super::problem::{Collector, Problem, Problems};
+use super::problem::{Collector, InputWarning, Problem, Problems};
 use super::text::Text;
 use crate::schema::{FieldSpec, Kind, TableSpec};
 
@@ -51,7 +51,7 @@ pub struct Table {
     /// Extra (grade) columns, in file order, for specs that allow them.
     pub extra: Vec<ExtraColumn>,
     /// Things worth telling the user that are not errors (ignored columns, skipped rows).
-    pub warnings: Vec<String>,
+    pub warnings: Vec<InputWarning>,
     /// (canonical name, header as written, values) of every fixed field found.
     pub(crate) columns: Vec<(&'static str, String, Column)>,
     /// Data row number of every record.
@@ -236,10 +236,13 @@ pub(crate) fn read_text(text: &Text, spec: &TableSpec, problems: &mut Collector)
         row_numbers.push(row);
     });
     if let Some(first) = skipped.first() {
-        plan.warnings.push(format!(
-            "{}: skipped {} empty row(s), the first at row {first}",
-            text.file,
-            skipped.len()
+        plan.warnings.push(InputWarning::new(
+            &text.file,
+            "empty-rows",
+            format!(
+                "skipped {} empty row(s), the first at row {first}",
+                skipped.len()
+            ),
         ));
     }
     Some(plan.finish(problems, row_numbers))
@@ -263,7 +266,7 @@ pub(crate) struct Plan {
     targets: Vec<(Target, usize)>,
     builders: Vec<Builder>,
     /// Warnings gathered so far.
-    pub(crate) warnings: Vec<String>,
+    pub(crate) warnings: Vec<InputWarning>,
 }
 
 impl Plan {
@@ -281,12 +284,12 @@ impl Plan {
         let layout = positional(headers, spec);
         if let Some(layout) = layout {
             let written: Vec<String> = headers.iter().map(|h| format!("`{}`", h.trim())).collect();
-            warnings.push(format!(
-                "{file}: the headers {} are not all MassFlow's; as MassFlow does, the {} columns are read by position as {}",
+            warnings.push(InputWarning::new(file, "positional-columns", format!(
+                "the headers {} are not all MassFlow's; as MassFlow does, the {} columns are read by position as {}",
                 written.join(", "),
                 layout.len(),
                 layout.join(", ")
-            ));
+            )));
         }
         let mut unused = Vec::new();
         for (i, raw) in headers.iter().enumerate() {
@@ -307,9 +310,10 @@ impl Plan {
                 continue;
             }
             if name.is_empty() {
-                warnings.push(format!(
-                    "{file}: column {} has no header and was ignored",
-                    i + 1
+                warnings.push(InputWarning::new(
+                    file,
+                    "no-header",
+                    format!("column {} has no header and was ignored", i + 1),
                 ));
                 targets.push((Target::Ignored, 0));
                 continue;
@@ -340,9 +344,13 @@ impl Plan {
                 (Some(f), _) => Target::Field(f),
                 (None, Some(_)) => Target::Extra,
                 (None, None) => {
-                    warnings.push(format!(
-                        "{file}: column `{name}` is not a {} column and was ignored",
-                        spec.name
+                    warnings.push(InputWarning::new(
+                        file,
+                        "unknown-column",
+                        format!(
+                            "column `{name}` is not a {} column and was ignored",
+                            spec.name
+                        ),
                     ));
                     Target::Ignored
                 }
@@ -353,9 +361,13 @@ impl Plan {
             targets.push((target, builders.len().saturating_sub(1)));
         }
         if !unused.is_empty() {
-            warnings.push(format!(
-                "{file}: MassFlow column(s) {} recognised but not used by caveflow (ignored)",
-                unused.join(", ")
+            warnings.push(InputWarning::new(
+                file,
+                "massflow-unused",
+                format!(
+                    "MassFlow column(s) {} recognised but not used by caveflow (ignored)",
+                    unused.join(", ")
+                ),
             ));
         }
         for f in spec.fields.iter().filter(|f| f.required) {

@@ -58,8 +58,8 @@ use std::collections::{HashMap, HashSet};
 use std::path::{Path, PathBuf};
 
 use crate::io::{
-    read_schedule_into, read_table_into, Collector, Problem, Problems, ScheduleForm, ScheduleTable,
-    Table,
+    read_schedule_into, read_table_into, Collector, InputWarning, Problem, Problems, ScheduleForm,
+    ScheduleTable, Table,
 };
 use crate::model::{BlockModel, Drawpoints, Periods, Scenario, Scene, Schedule};
 use crate::schema::{TableSpec, BLOCK_MODEL, DRAWBELLS, DRAWPOINTS, PERIODS};
@@ -98,7 +98,7 @@ pub struct LoadedScene {
     /// The input files and their hashes.
     pub inputs: Vec<InputFile>,
     /// Remarks that are not errors (ignored columns, defaulted widths, invented periods).
-    pub warnings: Vec<String>,
+    pub warnings: Vec<InputWarning>,
 }
 
 /// Default percolation coefficient k1 (summary §7.3).
@@ -171,9 +171,10 @@ pub fn load_scene(sc: &Scenario) -> Result<LoadedScene, Problems> {
     let periods = match (periods, &schedule) {
         (Some(t), s) => {
             if let Some(s) = s.as_ref().filter(|s| s.form == ScheduleForm::Wide) {
-                l.warnings.push(format!(
-                    "{}: period names and lengths come from the periods table, not from the wide schedule's headers",
-                    s.file
+                l.warnings.push(InputWarning::new(
+                    &s.file,
+                    "periods-table-wins",
+                    "period names and lengths come from the periods table, not from the wide schedule's headers",
                 ));
             }
             t.and_then(|t| l.periods(&t))
@@ -212,7 +213,7 @@ pub fn load_scene(sc: &Scenario) -> Result<LoadedScene, Problems> {
 struct Loader {
     problems: Collector,
     inputs: Vec<InputFile>,
-    warnings: Vec<String>,
+    warnings: Vec<InputWarning>,
 }
 
 /// Friction angles below this many degrees are taken for radians (`units-radians`): π/2
@@ -450,10 +451,14 @@ impl Loader {
                 }
             }
             if differ > 0 {
-                self.warnings.push(format!(
-                    "{file}: {} differs from {} in {differ} block(s); the dynamic cave period is used",
-                    t.header("cave_period_dyn"),
-                    t.header("cave_period")
+                self.warnings.push(InputWarning::new(
+                    file,
+                    "cave-period-dyn",
+                    format!(
+                        "{} differs from {} in {differ} block(s); the dynamic cave period is used",
+                        t.header("cave_period_dyn"),
+                        t.header("cave_period")
+                    ),
                 ));
             }
         }
@@ -612,14 +617,14 @@ impl Loader {
                 m.frag.push(f);
             }
             if let Some((i, count, d, mean)) = disagree {
-                self.warnings.push(format!(
-                    "{file}: {} disagrees with the Weibull mean of {}/{} by more than {:.0}% in {count} block(s), the first at row {} ({d} m against {mean:.4} m); the Weibull parameters are used",
+                self.warnings.push(InputWarning::new(file, "frag-mean", format!(
+                    "{} disagrees with the Weibull mean of {}/{} by more than {:.0}% in {count} block(s), the first at row {} ({d} m against {mean:.4} m); the Weibull parameters are used",
                     t.header("frag_size"),
                     t.header("frag_shape"),
                     t.header("frag_scale"),
                     100.0 * FRAG_MEAN_TOLERANCE,
                     t.row(i)
-                ));
+                )));
             }
         }
         m.frag_shape = shape.to_vec();
@@ -791,7 +796,7 @@ impl Loader {
         };
         for a in 0..3 {
             if size[a].is_none() {
-                self.warnings.push(format!("{file}: all blocks share one {} centre; the block size along {} is taken as {fallback} m", axes[a], axes[a]));
+                self.warnings.push(InputWarning::new(file, "block-size-fallback", format!("all blocks share one {} centre; the block size along {} is taken as {fallback} m", axes[a], axes[a])));
             }
             m.size[a] = size[a].unwrap_or(fallback);
         }
@@ -987,7 +992,7 @@ impl Loader {
         }
         self.overlapping_openings(t, &d);
         if defaulted > 0 {
-            self.warnings.push(format!("{file}: {defaulted} drawpoint(s) have no opening width (no width column value and no drawbell width); they use flow.default_opening_width = {default_width} m"));
+            self.warnings.push(InputWarning::new(file, "no-opening-width", format!("{defaulted} drawpoint(s) have no opening width (no width column value and no drawbell width); they use flow.default_opening_width = {default_width} m")));
         }
         Some(d)
     }
@@ -1141,10 +1146,13 @@ impl Loader {
         let mut ids: Vec<i64> = s.entries.iter().map(|e| e.period).collect();
         ids.sort_unstable();
         ids.dedup();
-        self.warnings.push(format!(
-            "{}: no periods table: the schedule's {} distinct period numbers are used, each one day long",
-            s.file,
-            ids.len()
+        self.warnings.push(InputWarning::new(
+            &s.file,
+            "one-day-periods",
+            format!(
+                "no periods table: the schedule's {} distinct period numbers are used, each one day long",
+                ids.len()
+            ),
         ));
         Periods {
             name: ids.iter().map(|i| i.to_string()).collect(),
@@ -1233,8 +1241,10 @@ impl Loader {
             }
         }
         if summed > 0 {
-            self.warnings.push(format!(
-                "{file}: {summed} repeated (period, drawpoint) row(s) were summed"
+            self.warnings.push(InputWarning::new(
+                file,
+                "summed-rows",
+                format!("{summed} repeated (period, drawpoint) row(s) were summed"),
             ));
         }
         out

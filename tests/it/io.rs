@@ -307,7 +307,7 @@ fn csv_blank_rows_are_skipped_but_counted() {
     assert_eq!(t.len(), 8);
     assert_eq!(t.warnings.len(), 1, "{:?}", t.warnings);
     assert!(
-        t.warnings[0].contains("skipped 1 empty row"),
+        t.warnings[0].rule == "empty-rows" && t.warnings[0].message.contains("skipped 1 empty row"),
         "{:?}",
         t.warnings
     );
@@ -422,14 +422,12 @@ fn parquet_reads_and_casts() {
     assert_eq!(l.scene.blocks.lithology_names, ["a", "b", "c"]);
     assert_eq!(l.scene.drawpoints.width, [4.0], "scenario default width");
     assert!(
-        l.warnings
-            .iter()
-            .any(|w| w.contains("default_opening_width")),
+        l.warnings.iter().any(|w| w.rule == "no-opening-width"),
         "{:?}",
         l.warnings
     );
     assert!(
-        l.warnings.iter().any(|w| w.contains("one day long")),
+        l.warnings.iter().any(|w| w.rule == "one-day-periods"),
         "{:?}",
         l.warnings
     );
@@ -507,7 +505,9 @@ fn massflow_block_model_with_weibull_and_grades() {
         "one elevation: z takes the horizontal size"
     );
     assert!(
-        l.warnings.iter().any(|w| w.contains("share one z centre")),
+        l.warnings
+            .iter()
+            .any(|w| w.rule == "block-size-fallback" && w.message.contains("share one z centre")),
         "{:?}",
         l.warnings
     );
@@ -557,9 +557,7 @@ fn massflow_drawpoints_take_widths_from_drawbells() {
     assert_eq!(d.width, [4.2, 5.0, 3.8]);
     assert_eq!(d.z[0], 7690.0);
     assert!(
-        !l.warnings
-            .iter()
-            .any(|w| w.contains("default_opening_width")),
+        !l.warnings.iter().any(|w| w.rule == "no-opening-width"),
         "{:?}",
         l.warnings
     );
@@ -590,7 +588,7 @@ fn wide_schedule_with_every_header_form() {
     );
     assert_eq!(sch.period(5), [1000.0, 900.5, 5.0]);
     assert_eq!(sch.total(0), 1360.0);
-    assert!(!l.warnings.iter().any(|w| w.contains("one day long")));
+    assert!(!l.warnings.iter().any(|w| w.rule == "one-day-periods"));
 }
 
 #[test]
@@ -659,7 +657,7 @@ fn fixture_scene_sums_repeated_rows_and_reads_zones() {
     let l = load_scene(&sc).unwrap_or_else(|p| panic!("{p}"));
     assert_eq!(l.scene.schedule.period(1), [75.0, 0.0]);
     assert!(
-        l.warnings.iter().any(|w| w.contains("summed")),
+        l.warnings.iter().any(|w| w.rule == "summed-rows"),
         "{:?}",
         l.warnings
     );
@@ -678,9 +676,9 @@ fn unknown_columns_of_fixed_tables_are_ignored_with_a_warning() {
     });
     let l = r.unwrap_or_else(|p| panic!("{p}"));
     assert!(
-        l.warnings
-            .iter()
-            .any(|w| w.contains("drawpoints.csv") && w.contains("`comment`")),
+        l.warnings.iter().any(|w| w.rule == "unknown-column"
+            && w.file == "drawpoints.csv"
+            && w.message.contains("`comment`")),
         "{:?}",
         l.warnings
     );
@@ -1308,7 +1306,7 @@ fn wide_schedule_with_periods_table_uses_the_table() {
     assert_eq!(l.scene.schedule.period(0), [10.0, 30.0]);
     assert_eq!(l.scene.schedule.period(1), [20.0, 0.0]);
     assert!(
-        l.warnings.iter().any(|w| w.contains("periods table")),
+        l.warnings.iter().any(|w| w.rule == "periods-table-wins"),
         "{:?}",
         l.warnings
     );

@@ -6,7 +6,7 @@ use std::fs;
 use std::time::Instant;
 
 use caveflow::engine::{resolution, stability, Engine};
-use caveflow::io::{read_schedule, read_table, Problems};
+use caveflow::io::{read_schedule, read_table, InputWarning, Problems};
 use caveflow::model::load::{load_scene, LoadedScene};
 use caveflow::model::Scenario;
 use caveflow::schema::{BLOCK_MODEL, DRAWBELLS, DRAWPOINTS};
@@ -111,7 +111,7 @@ fn validated(files: &Files) -> (TempDir, Scenario, LoadedScene) {
 }
 
 fn has_warning(l: &LoadedScene, needle: &str) -> bool {
-    l.warnings.iter().any(|w| w.contains(needle))
+    l.warnings.iter().any(|w| w.to_string().contains(needle))
 }
 
 #[test]
@@ -148,14 +148,14 @@ fn manual_example_loads_and_validates_in_comma_and_tab_form() {
             "{:?}",
             l.warnings
         );
-        let unused: Vec<&String> = l
+        let unused: Vec<&InputWarning> = l
             .warnings
             .iter()
-            .filter(|w| w.contains("not used by caveflow"))
+            .filter(|w| w.rule == "massflow-unused")
             .collect();
         assert_eq!(unused.len(), 1, "{:?}", l.warnings);
         assert!(
-            unused[0].contains("BellHeight") && unused[0].contains("RetreatAz"),
+            unused[0].message.contains("BellHeight") && unused[0].message.contains("RetreatAz"),
             "{}",
             unused[0]
         );
@@ -250,7 +250,7 @@ fn drawpoints_with_unfamiliar_headers_are_read_by_position() {
     assert!(
         has_warning(
             &l,
-            "drawpoints.csv: the headers `Name`, `East`, `North`, `Elev`, `Bell`, `Type` are not all MassFlow's; as MassFlow does, the 6 columns are read by position as DPName, X, Y, Z, DBID, DBType"
+            "drawpoints.csv: [positional-columns] the headers `Name`, `East`, `North`, `Elev`, `Bell`, `Type` are not all MassFlow's; as MassFlow does, the 6 columns are read by position as DPName, X, Y, Z, DBID, DBType"
         ),
         "{:?}",
         l.warnings
@@ -262,7 +262,10 @@ fn drawpoints_with_unfamiliar_headers_are_read_by_position() {
     fs::write(&path, "name,x,y,z,width,comment\nDP1,1,2,3,4,hi\n").unwrap();
     let t = read_table(&path, &DRAWPOINTS).unwrap();
     assert_eq!(t.f64("width").unwrap(), [4.0]);
-    assert!(t.warnings.iter().any(|w| w.contains("`comment`")));
+    assert!(t
+        .warnings
+        .iter()
+        .any(|w| w.rule == "unknown-column" && w.message.contains("`comment`")));
 
     // A schedule row for a drawpoint the positional file does not have.
     files.schedule = "DPName,7,7,7,7\nDP1,2000,2000,2000,2000\nDP9,1,1,1,1\n".into();
@@ -325,12 +328,12 @@ fn massflow_computed_block_columns_are_not_grades() {
     );
     assert!(has_warning(
         &l,
-        "blocks.csv: CavePeriodDyn differs from CavePeriod in 1 block(s); the dynamic cave period is used"
+        "blocks.csv: [cave-period-dyn] CavePeriodDyn differs from CavePeriod in 1 block(s); the dynamic cave period is used"
     ));
     assert!(
         has_warning(
             &l,
-            "blocks.csv: MassFlow column(s) MeanDiaDyn, SDDia, Pmin, Kexp recognised but not used by caveflow (ignored)"
+            "blocks.csv: [massflow-unused] MassFlow column(s) MeanDiaDyn, SDDia, Pmin, Kexp recognised but not used by caveflow (ignored)"
         ),
         "{:?}",
         l.warnings
@@ -362,14 +365,15 @@ fn mean_dia_disagreeing_with_weibull_warns() {
         }
     });
     let (_dir, _sc, l) = validated(&files);
-    let w: Vec<&String> = l
+    let w: Vec<String> = l
         .warnings
         .iter()
-        .filter(|w| w.contains("disagrees"))
+        .filter(|w| w.rule == "frag-mean")
+        .map(|w| w.to_string())
         .collect();
     assert_eq!(
         w,
-        ["blocks.csv: MeanDia disagrees with the Weibull mean of PriFragA/PriFragB by more than 10% in 132 block(s), the first at row 2 (0.7 m against 0.4861 m); the Weibull parameters are used"],
+        ["blocks.csv: [frag-mean] MeanDia disagrees with the Weibull mean of PriFragA/PriFragB by more than 10% in 132 block(s), the first at row 2 (0.7 m against 0.4861 m); the Weibull parameters are used"],
         "{:?}",
         l.warnings
     );
