@@ -2,14 +2,18 @@
 //! any plotters backend can draw, the title strip, and [`write_chart`].
 //!
 //! Every chart is written atomically: it is rendered to a temporary file next to the target
-//! (`<stem>.tmp-<pid>-<n>.<ext>`) and renamed over it, so a reader never sees half a chart.
+//! (`<stem>.tmp-<pid>-<n>.<ext>`, since plotters writes to a path itself), then made final by
+//! the same step as every other output file (`output::parquet::persist`: data synced, renamed
+//! over the target, directory synced), so a reader never sees half a chart.
 
+use std::fs::File;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicU64, Ordering as AtomicOrdering};
 
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, VPos};
+
+use crate::output::parquet::{persist, tmp_tag};
 
 use super::{put_text, text, ChartError, ChartFormat, DrawError, IntoChartError, Pen, TITLE_H};
 
@@ -51,17 +55,13 @@ pub(super) fn write_chart<R: Render>(path: &Path, chart: &R) -> Result<(), Chart
     let result = render_file(&tmp, format, chart)
         .map_err(|e| e.into_chart_error(path))
         .and_then(|()| {
-            let io = |source| ChartError::Io {
+            // Every failure names the chart, whichever file or directory it concerns.
+            let io = |_: &Path, source| ChartError::Io {
                 path: path.to_path_buf(),
                 source,
             };
-            // Synced before the rename and the directory after it, like every other output
-            // file (see `output::parquet`).
-            std::fs::File::open(&tmp)
-                .and_then(|f| f.sync_all())
-                .map_err(io)?;
-            std::fs::rename(&tmp, path).map_err(io)?;
-            crate::output::parquet::sync_parent(path).map_err(io)
+            let file = File::open(&tmp).map_err(|e| io(&tmp, e))?;
+            persist(file, &tmp, path, io)
         });
     if result.is_err() {
         // The backend may have written a partial file before failing; it is ours to remove.
@@ -70,20 +70,15 @@ pub(super) fn write_chart<R: Render>(path: &Path, chart: &R) -> Result<(), Chart
     result
 }
 
-/// Temporary sibling of `path`: `<stem>.tmp-<pid>-<n>.<ext>`. The extension stays last
-/// because the PNG encoder picks the format from it; `n` keeps threads apart.
+/// Temporary sibling of `path`: `<stem>.tmp-<pid>-<n>.<ext>` (the tag of
+/// `output::parquet::tmp_tag`). The extension stays last because the PNG encoder picks the
+/// format from it.
 pub(super) fn temp_path(path: &Path, format: ChartFormat) -> PathBuf {
-    static SEQ: AtomicU64 = AtomicU64::new(0);
     let stem = path
         .file_stem()
         .map(|s| s.to_string_lossy().into_owned())
         .unwrap_or_else(|| "chart".into());
-    let n = SEQ.fetch_add(1, AtomicOrdering::Relaxed);
-    path.with_file_name(format!(
-        "{stem}.tmp-{}-{n}.{}",
-        std::process::id(),
-        format.extension()
-    ))
+    path.with_file_name(format!("{stem}{}.{}", tmp_tag(), format.extension()))
 }
 
 /// Draw `chart` into the file `tmp` with the backend of `format`.
