@@ -2,8 +2,10 @@
 //!
 //! [`AtomicFile`] writes to `<path>.tmp-<pid>-<n>` in the target's own directory (so the
 //! rename never crosses a file system), syncs the data, renames it over the target and
-//! syncs the directory. Until the rename the target is untouched; if the writer is dropped
-//! before [`AtomicFile::commit`] (an error, a panic) the temporary file is removed. A hard
+//! syncs the directory. Those last steps are `persist`, which the charts use too (they
+//! render to `<stem>.tmp-<pid>-<n>.<ext>` first), so there is one way a file is made final.
+//! Until the rename the target is untouched; if the writer is dropped before
+//! [`AtomicFile::commit`] (an error, a panic) the temporary file is removed. A hard
 //! crash (power loss, `kill -9`) can leave a `*.tmp-*` file beside the target, but never a
 //! torn file under the target's name.
 
@@ -59,11 +61,7 @@ impl AtomicFile {
             source: io::Error::new(io::ErrorKind::InvalidInput, "not a file path"),
         })?;
         let mut tmp_name = name.to_os_string();
-        tmp_name.push(format!(
-            ".tmp-{}-{}",
-            std::process::id(),
-            TMP_COUNTER.fetch_add(1, Ordering::Relaxed)
-        ));
+        tmp_name.push(tmp_tag());
         let tmp = path.with_file_name(tmp_name);
         let file = OpenOptions::new()
             .write(true)
@@ -95,12 +93,17 @@ impl AtomicFile {
             path: self.tmp.clone(),
             source: e.into_error(),
         })?;
-        file.sync_all().map_err(io_err(&self.tmp))?;
-        drop(file);
-        fs::rename(&self.tmp, &self.path).map_err(io_err(&self.path))?;
-        // Renamed: nothing left for Drop to clean up.
-        self.tmp = PathBuf::new();
-        sync_dir(&self.path)
+        let result = persist(file, &self.tmp, &self.path, |path, source| {
+            OutputError::Io {
+                path: path.to_path_buf(),
+                source,
+            }
+        });
+        if result.is_ok() {
+            // Renamed: nothing left for Drop to clean up.
+            self.tmp = PathBuf::new();
+        }
+        result
     }
 }
 
@@ -139,18 +142,42 @@ fn parent(path: &Path) -> &Path {
     }
 }
 
-/// Syncs the directory holding `path`, making a completed rename durable (every atomic
-/// writer of the output layer calls it after its rename). Directories cannot be opened for
-/// syncing on every platform; where they cannot, the rename is still atomic.
-pub(crate) fn sync_parent(path: &Path) -> io::Result<()> {
+/// Syncs the directory holding `path`, making a completed rename durable (`persist` calls it
+/// after its rename). Directories cannot be opened for syncing on every platform; where
+/// they cannot, the rename is still atomic.
+fn sync_parent(path: &Path) -> io::Result<()> {
     if cfg!(unix) {
         File::open(parent(path))?.sync_all()?;
     }
     Ok(())
 }
 
-fn sync_dir(path: &Path) -> Result<(), OutputError> {
-    sync_parent(path).map_err(io_err(parent(path)))
+/// `.tmp-<pid>-<n>`: the mark of a temporary file, unique within the process (`n` keeps
+/// writers and threads apart) and between processes (`pid`).
+pub(crate) fn tmp_tag() -> String {
+    format!(
+        ".tmp-{}-{}",
+        std::process::id(),
+        TMP_COUNTER.fetch_add(1, Ordering::Relaxed)
+    )
+}
+
+/// Makes the finished temporary file `tmp` (open as `file`) the file at `path`: syncs its
+/// data, closes it, renames it over `path` and syncs the directory. This is the end of every
+/// atomic write: [`AtomicFile::commit`], and the charts, which plotters writes to a path
+/// itself. `err` turns a failure into the caller's error, given the path it concerns (`tmp`
+/// for the sync, `path` for the rename, the directory for its sync). On failure `tmp` is
+/// left for the caller to remove.
+pub(crate) fn persist<E>(
+    file: File,
+    tmp: &Path,
+    path: &Path,
+    err: impl Fn(&Path, io::Error) -> E,
+) -> Result<(), E> {
+    file.sync_all().map_err(|e| err(tmp, e))?;
+    drop(file);
+    fs::rename(tmp, path).map_err(|e| err(path, e))?;
+    sync_parent(path).map_err(|e| err(parent(path), e))
 }
 
 /// Writes `bytes` to `path` atomically (text, JSON, TOML).
