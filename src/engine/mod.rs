@@ -542,6 +542,8 @@ impl<'a> Engine<'a> {
             // in a cell near the IMZs of the longest window due (its level's IMZs are among
             // them), so the test over every row, in parallel, finds the rows the bins of
             // those cells would list and filter; the serial listing cost more at mine scale.
+            // A row whose level is not due costs one byte read; ground no IMZ has reached
+            // has no markers yet (`Engine::engulf`), so it still costs nothing.
             let cells = self.cells_near(&geoms, &active[due as usize], cells);
             let mk = &self.markers;
             let rows: Vec<u32> = (0..mk.len() as u32)
