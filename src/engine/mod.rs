@@ -37,11 +37,14 @@
 //! 1 ± [`CORRECTION_MEDIAN_TOLERANCE`] warns: that is a bias of the kinematics, not
 //! discreteness.
 
+mod air_gap;
+mod balance;
 pub mod cadence;
 pub mod checkpoint;
 pub mod crediting;
 pub mod fines;
 pub mod fragmentation;
+mod height_of_draw;
 pub mod imz;
 pub mod markers;
 pub mod resolution;
@@ -53,97 +56,16 @@ pub mod stress;
 use rayon::prelude::*;
 
 use crate::model::{Scenario, Scene};
+pub use balance::{
+    correction_stats, correction_warning, CORRECTION_BOUNDS, CORRECTION_MEDIAN_TOLERANCE,
+};
 use cadence::Cadence;
 use crediting::Tally;
 use fragmentation::SizeDist;
+use height_of_draw::tributary;
 use imz::{DiskMotion, Ground, Imz, ImzGeom, ImzGrid, ImzParams, Mobilised};
 use markers::{Bins, DrawnMarkers, Lattice, Markers, MotionField, WallReach};
 pub use result::*;
-
-/// MassFlow's bounds of its mass-correction factor: the rows beyond them are counted.
-pub const CORRECTION_BOUNDS: (f64, f64) = (0.1, 2.0);
-
-/// How far the median over the drawpoints of credited over marker tonnes may sit from 1
-/// before a run warns: the markers' discreteness averages out over a drawpoint's run.
-pub const CORRECTION_MEDIAN_TOLERANCE: f64 = 0.03;
-
-/// The warning of a run whose drawpoints' median ratio of credited over marker tonnes
-/// leaves 1 ± [`CORRECTION_MEDIAN_TOLERANCE`], over the run or over either half of the
-/// drawpoints' tonnes (a bias that changes sign over the run can leave the run's median at
-/// 1).
-pub fn correction_warning(c: &CorrectionStats) -> Option<String> {
-    let off = |m: f64| (m - 1.0).abs() > CORRECTION_MEDIAN_TOLERANCE;
-    let [first, second] = c.halves_median;
-    (c.rows > 0 && (off(c.drawpoint_median) || off(first) || off(second))).then(|| format!(
-        "mass balance: the drawpoints' median ratio of credited over marker tonnes is {:.3} ({first:.3} over the first half of each drawpoint's tonnes, {second:.3} over the second), beyond 1 ± {CORRECTION_MEDIAN_TOLERANCE}: the markers drawn carry a bias, not only their discreteness (per drawpoint-period: median {:.3}, p10 {:.3}, p90 {:.3} over {} rows); see manifest.json mass_balance.correction",
-        c.drawpoint_median, c.median, c.p10, c.p90, c.rows
-    ))
-}
-
-/// Nearest-rank quantile `p` of sorted values (NaN if none).
-fn quantile(sorted: &[f64], p: f64) -> f64 {
-    if sorted.is_empty() {
-        return f64::NAN;
-    }
-    sorted[((p * sorted.len() as f64).ceil() as usize).clamp(1, sorted.len()) - 1]
-}
-
-/// The distribution of the correction factor in an extraction table: quantiles over the
-/// `ok` rows that drew markers, the rows beyond MassFlow's bounds over every row with
-/// markers, and the median over the drawpoints of their ratio over the run.
-pub fn correction_stats(ex: &Extraction) -> CorrectionStats {
-    let ok = |k: usize| ex.status[k] == "ok" && ex.marker_tonnes[k] > 0.0;
-    let mut c: Vec<f64> = (0..ex.correction.len())
-        .filter(|&k| ok(k))
-        .map(|k| ex.correction[k])
-        .collect();
-    c.sort_unstable_by(f64::total_cmp);
-    // Per drawpoint over the run, and over each half of its credited tonnes (a row falls in
-    // the half that holds its middle): every ok row, those that drew no marker too.
-    let rows = || (0..ex.correction.len()).filter(|&k| ex.status[k] == "ok");
-    let mut total: std::collections::BTreeMap<u32, f64> = Default::default();
-    for k in rows() {
-        *total.entry(ex.drawpoint[k]).or_default() += ex.tonnes[k];
-    }
-    // (credited, marker) tonnes per drawpoint: over the run, the first half, the second.
-    let mut per_dp: std::collections::BTreeMap<u32, [(f64, f64); 3]> = Default::default();
-    for k in rows() {
-        let e = per_dp.entry(ex.drawpoint[k]).or_default();
-        let half = if e[0].0 + 0.5 * ex.tonnes[k] <= 0.5 * total[&ex.drawpoint[k]] {
-            1
-        } else {
-            2
-        };
-        for i in [0, half] {
-            e[i].0 += ex.tonnes[k];
-            e[i].1 += ex.marker_tonnes[k];
-        }
-    }
-    let median_of = |i: usize| {
-        let mut r: Vec<f64> = per_dp
-            .values()
-            .filter(|e| e[i].1 > 0.0)
-            .map(|e| e[i].0 / e[i].1)
-            .collect();
-        r.sort_unstable_by(f64::total_cmp);
-        quantile(&r, 0.5)
-    };
-    let beyond = |outside: fn(f64) -> bool| {
-        (0..ex.correction.len())
-            .filter(|&k| ex.marker_tonnes[k] > 0.0 && outside(ex.correction[k]))
-            .count() as u64
-    };
-    CorrectionStats {
-        rows: c.len() as u64,
-        median: quantile(&c, 0.5),
-        p10: quantile(&c, 0.1),
-        p90: quantile(&c, 0.9),
-        at_lower_bound: beyond(|x| x <= CORRECTION_BOUNDS.0),
-        at_upper_bound: beyond(|x| x >= CORRECTION_BOUNDS.1),
-        drawpoint_median: median_of(0),
-        halves_median: [median_of(1), median_of(2)],
-    }
-}
 
 /// Engine errors (bad settings that validation cannot see).
 #[derive(Debug, thiserror::Error)]
@@ -743,135 +665,6 @@ impl<'a> Engine<'a> {
         self.all_moved = true;
     }
 
-    /// Notes that markers moved, appeared or left in plan cells `cells` (for the air gap).
-    fn mark_moved(&mut self, cells: &[usize]) {
-        if self.moved_cells.len() != self.bins.n_cells() + 1 {
-            self.moved_cells = vec![false; self.bins.n_cells() + 1];
-        }
-        cells.iter().for_each(|&c| self.moved_cells[c] = true);
-    }
-
-    /// Air-gap height of every block column, appended to the air-gap table: the air blocks
-    /// (caved, holding less than `rilling.air_fill` of their in-situ mass) at the top of
-    /// each caved stretch of the column.
-    ///
-    /// A column's air gap changes only where markers moved, appeared or left (the plan cells
-    /// noted by `mark_moved`), or when ground caves or rills; only those columns are
-    /// recomputed, the others keep their last value. A block's mass sums its markers in
-    /// ascending row order, as a pass over every marker would.
-    fn record_air_gap(&mut self, period: i64) {
-        let bm = &self.scene.blocks;
-        let [nx, ny, nz] = bm.dims;
-        let vol = bm.size.iter().product::<f64>();
-        // Block columns to recompute, and the rows of the markers that may lie in them.
-        let mut cols = vec![self.all_moved; nx * ny];
-        if self.all_moved {
-            self.rows.clear();
-            self.rows.extend(0..self.markers.len() as u32);
-        } else {
-            let mut cells = Vec::new();
-            for (c, _) in self.moved_cells.iter().enumerate().filter(|m| *m.1) {
-                if c == self.bins.n_cells() {
-                    continue;
-                }
-                let [x, y] = self.bins.cell_rect(c);
-                let span = |lo: f64, hi: f64, a: usize| {
-                    let t0 = ((lo - bm.origin[a]) / bm.size[a]).floor().max(0.0) as usize;
-                    let t1 = ((hi - bm.origin[a]) / bm.size[a]).floor().max(0.0) as usize;
-                    (t0.saturating_sub(1), (t1 + 1).min(bm.dims[a] - 1))
-                };
-                let ((i0, i1), (j0, j1)) = (span(x[0], x[1], 0), span(y[0], y[1], 1));
-                for j in j0..=j1 {
-                    for i in i0..=i1 {
-                        if !cols[i + nx * j] {
-                            cols[i + nx * j] = true;
-                            let lo = [
-                                bm.origin[0] + i as f64 * bm.size[0],
-                                bm.origin[1] + j as f64 * bm.size[1],
-                            ];
-                            self.bins.cells_in(
-                                [lo[0], lo[0] + bm.size[0]],
-                                [lo[1], lo[1] + bm.size[1]],
-                                1,
-                                &mut cells,
-                            );
-                        }
-                    }
-                }
-            }
-            cells.push(self.bins.n_cells());
-            cells.sort_unstable();
-            cells.dedup();
-            self.bins.rows_in(&cells, &mut self.rows);
-        }
-        self.all_moved = false;
-        self.moved_cells.iter_mut().for_each(|m| *m = false);
-        let block = |i: usize, j: usize, k: usize| {
-            let b = bm.index[i + nx * (j + ny * k)];
-            (b != crate::model::block_model::NO_BLOCK).then_some(b as usize)
-        };
-        let full = |b: usize| vol * bm.density[b] * (1.0 - bm.n0[b]);
-        let mass = &mut self.block_mass;
-        for j in 0..ny {
-            for i in (0..nx).filter(|&i| cols[i + nx * j]) {
-                for b in (0..nz).filter_map(|k| block(i, j, k)) {
-                    mass[b] = self.lattice_mass[b] - self.engulfed_mass[b];
-                }
-            }
-        }
-        // Each row's block is found in parallel; the masses are then summed in row order.
-        let mk = &self.markers;
-        let blocks: Vec<u32> = self
-            .rows
-            .par_iter()
-            .map(|&k| {
-                let k = k as usize;
-                bm.cell([mk.x[k], mk.y[k], mk.z[k]])
-                    .filter(|c| cols[c[0] + nx * c[1]])
-                    .and_then(|c| block(c[0], c[1], c[2]))
-                    .map_or(u32::MAX, |b| b as u32)
-            })
-            .collect();
-        for (&k, &b) in self.rows.iter().zip(&blocks) {
-            if b != u32::MAX {
-                mass[b as usize] += mk.mass[k as usize];
-            }
-        }
-        let fill = self.scenario.rilling.air_fill;
-        let t = &mut self.out.air_gap;
-        for j in 0..ny {
-            for i in 0..nx {
-                if cols[i + nx * j] {
-                    // From the top of each caved stretch of the column (under uncaved ground
-                    // or open to the top of the model) down to its first block that is not
-                    // air. A thin block deep in the flow (markers near a drawpoint move
-                    // several blocks per update) is not an air gap.
-                    let mut air = 0.0;
-                    let mut open = true;
-                    for k in (0..nz).rev() {
-                        let Some(b) = block(i, j, k).filter(|&b| bm.flowable(b, period)) else {
-                            open = true;
-                            continue;
-                        };
-                        if open && mass[b] < fill * full(b) {
-                            air += bm.size[2];
-                        } else {
-                            open = false;
-                        }
-                    }
-                    self.air_col[i + nx * j] = air;
-                }
-                let air = self.air_col[i + nx * j];
-                if air > 0.0 {
-                    t.period.push(period);
-                    t.x.push(bm.origin[0] + (i as f64 + 0.5) * bm.size[0]);
-                    t.y.push(bm.origin[1] + (j as f64 + 0.5) * bm.size[1]);
-                    t.air_gap.push(air);
-                }
-            }
-        }
-    }
-
     /// Appends the free-surface height field to the surface table.
     fn record_surface(&mut self, period: i64) {
         let h = self.free_surface(period);
@@ -1414,59 +1207,6 @@ fn grid_cell(bm: &crate::model::BlockModel, spacing: f64) -> f64 {
     bm.size[0].min(bm.size[1]).max(spacing)
 }
 
-/// Largest plan cell of the tributary areas, m (see [`tributary`]).
-const TRIBUTARY_CELL: f64 = 1.0;
-
-/// Tributary footprint × in-situ bulk density per drawpoint (t per m of height of draw):
-/// each block-grid column is split into square sub-cells of at most [`TRIBUTARY_CELL`], and
-/// each sub-cell belongs to its nearest drawpoint. Whole columns would leave a drawpoint
-/// with no footprint (and an infinite height of draw) wherever drawpoints are closer
-/// together than a block is wide, as at mine scale (15.2 m blocks, 12.2 m spacing).
-fn tributary(scene: &Scene) -> Vec<f64> {
-    let bm = &scene.blocks;
-    let dp = &scene.drawpoints;
-    let mut out = vec![0.0; dp.len()];
-    if dp.is_empty() {
-        return out;
-    }
-    let sub = [0, 1].map(|a| ((bm.size[a] / TRIBUTARY_CELL).ceil() as usize).max(1));
-    let area = bm.size[0] * bm.size[1] / (sub[0] * sub[1]) as f64;
-    for j in 0..bm.dims[1] {
-        for i in 0..bm.dims[0] {
-            let (mut rho, mut n) = (0.0, 0usize);
-            for k in 0..bm.dims[2] {
-                let b = bm.index[i + bm.dims[0] * (j + bm.dims[1] * k)];
-                if b != crate::model::block_model::NO_BLOCK {
-                    let b = b as usize;
-                    rho += bm.density[b] * (1.0 - bm.n0[b]);
-                    n += 1;
-                }
-            }
-            if n == 0 {
-                continue;
-            }
-            let share = area * rho / n as f64;
-            for sj in 0..sub[1] {
-                for si in 0..sub[0] {
-                    let x =
-                        bm.origin[0] + (i as f64 + (si as f64 + 0.5) / sub[0] as f64) * bm.size[0];
-                    let y =
-                        bm.origin[1] + (j as f64 + (sj as f64 + 0.5) / sub[1] as f64) * bm.size[1];
-                    let near = (0..dp.len())
-                        .min_by(|&a, &b| {
-                            let da = (dp.x[a] - x).powi(2) + (dp.y[a] - y).powi(2);
-                            let db = (dp.x[b] - x).powi(2) + (dp.y[b] - y).powi(2);
-                            da.total_cmp(&db)
-                        })
-                        .unwrap_or(0);
-                    out[near] += share;
-                }
-            }
-        }
-    }
-    out
-}
-
 /// Which blocks are waste under the scenario's dilution rule.
 fn waste_blocks(scene: &Scene, sc: &Scenario) -> Vec<bool> {
     let bm = &scene.blocks;
@@ -1503,114 +1243,4 @@ fn fines_fractions(scene: &Scene, cut: f64) -> Vec<f64> {
             }
         })
         .collect()
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::model::demo::{henderson, DemoScale};
-
-    /// At mine scale the drawpoints (12.2 m apart along a drift) are closer together than a
-    /// block is wide (15.2 m): every drawpoint still has a footprint near its share of the
-    /// panel (its heights of draw are finite), and the footprints add up to the panel's.
-    #[test]
-    fn correction_stats_and_warning() {
-        let mut ex = Extraction::default();
-        for (k, (c, m, st)) in [
-            (0.9, 10.0, "ok"),
-            (1.0, 10.0, "ok"),
-            (1.02, 10.0, "ok"),
-            (1.1, 10.0, "ok"),
-            (2.0, 10.0, "short"),
-            (1.0, 0.0, "ok"),
-        ]
-        .into_iter()
-        .enumerate()
-        {
-            ex.drawpoint.push((k % 2) as u32);
-            ex.correction.push(c);
-            ex.marker_tonnes.push(m);
-            ex.tonnes.push(if m > 0.0 { c * m } else { 5.0 });
-            ex.status.push(st);
-        }
-        let s = correction_stats(&ex);
-        // Quantiles over the four ok rows that drew markers; bounds over every row.
-        assert_eq!((s.rows, s.p10, s.median, s.p90), (4, 0.9, 1.0, 1.1));
-        assert_eq!((s.at_lower_bound, s.at_upper_bound), (0, 1));
-        // Drawpoint 0: (9 + 10.2) / 20 = 0.96; drawpoint 1: (10 + 11 + 5) / 20 = 1.3, its ok
-        // row that drew no marker counting with its 5 t credited.
-        assert!(
-            (s.drawpoint_median - 0.96).abs() < 1e-12,
-            "{}",
-            s.drawpoint_median
-        );
-        let mut one = ex.clone();
-        one.status[0] = "short";
-        one.status[2] = "short";
-        assert!((correction_stats(&one).drawpoint_median - 1.3).abs() < 1e-12);
-        assert!(correction_warning(&s)
-            .unwrap()
-            .contains("median ratio of credited over marker tonnes is 0.960"));
-        // Halves: drawpoint 0's 9 t row is its first half (0.9), its 10.2 t row its second
-        // (1.02); drawpoint 1's 10 t row its first (1.0), the 11 t and 5 t rows its second
-        // (16 / 10). Nearest-rank medians of two values take the lower.
-        assert_eq!(
-            s.halves_median.map(|m| (m * 1e9).round() / 1e9),
-            [0.9, 1.02]
-        );
-        let fair = CorrectionStats {
-            drawpoint_median: 1.02,
-            halves_median: [1.0, 1.02],
-            ..s
-        };
-        assert!(correction_warning(&fair).is_none());
-        // A bias that changes sign over the run leaves the run's median at 1.
-        let trend = CorrectionStats {
-            drawpoint_median: 1.0,
-            halves_median: [0.96, 1.05],
-            ..s
-        };
-        assert!(correction_warning(&trend).unwrap().contains(
-            "(0.960 over the first half of each drawpoint's tonnes, 1.050 over the second)"
-        ));
-        assert!(correction_warning(&CorrectionStats::default()).is_none());
-    }
-
-    #[test]
-    fn every_drawpoint_has_a_tributary_footprint() {
-        for scale in [DemoScale::Small, DemoScale::Mine] {
-            let scene = henderson(scale, 1);
-            let bm = &scene.blocks;
-            let t = tributary(&scene);
-            let mut whole = 0.0;
-            for j in 0..bm.dims[1] {
-                for i in 0..bm.dims[0] {
-                    let col: Vec<usize> = (0..bm.dims[2])
-                        .map(|k| bm.index[i + bm.dims[0] * (j + bm.dims[1] * k)])
-                        .filter(|&b| b != crate::model::block_model::NO_BLOCK)
-                        .map(|b| b as usize)
-                        .collect();
-                    if !col.is_empty() {
-                        let rho: f64 = col.iter().map(|&b| bm.density[b] * (1.0 - bm.n0[b])).sum();
-                        whole += bm.size[0] * bm.size[1] * rho / col.len() as f64;
-                    }
-                }
-            }
-            let sum: f64 = t.iter().sum();
-            assert!(
-                (sum - whole).abs() <= 1e-9 * whole,
-                "{scale:?}: {sum} vs {whole}"
-            );
-            let mut sorted = t.clone();
-            sorted.sort_by(f64::total_cmp);
-            let median = sorted[t.len() / 2];
-            // Interior drawpoints share the footprint evenly; those on the panel's edge take
-            // the ground beyond it too, so only a floor is asserted.
-            assert!(
-                sorted[0] > 0.5 * median,
-                "{scale:?}: smallest {} vs median {median}",
-                sorted[0]
-            );
-        }
-    }
 }
