@@ -251,15 +251,7 @@ impl<'a> SectionPlot<'a> {
         let width = chart_w.max(MIN_W).max(title_w);
         let legend = Legend::new(entries, width)?;
         let height = TITLE_H + SEC_TOP + plot_h + SEC_BOTTOM + legend.height;
-        // A frame of n px spans n − 1 px steps, so these ranges keep exactly `scale` px/m on
-        // both axes.
-        let frame = Frame {
-            left: ((width - chart_w) / 2 + left) as i32,
-            top: (TITLE_H + SEC_TOP) as i32,
-            size: (plot_w, plot_h),
-            x: (x0, x0 + f64::from(plot_w - 1) / scale),
-            y: (z1 - f64::from(plot_h - 1) / scale, z1),
-        };
+        let frame = equal_aspect_frame(width, chart_w, left, (plot_w, plot_h), scale, (x0, z1));
         Ok(SectionPlot {
             section,
             title,
@@ -362,6 +354,27 @@ fn section_legend(section: &Section) -> Vec<LegendEntry> {
         });
     }
     entries
+}
+
+/// The plot frame of an equal-aspect section (`scale` px per m on both axes): a chart
+/// `chart_w` px wide centred on a page `width` wide, the plot `left` px into the chart and
+/// `size` px, the data's top-left corner at `(x0, y1)`. A frame of n px spans n − 1 px
+/// steps, so these ranges keep exactly `scale` px/m on both axes.
+pub(super) fn equal_aspect_frame(
+    width: u32,
+    chart_w: u32,
+    left: u32,
+    size: (u32, u32),
+    scale: f64,
+    (x0, y1): (f64, f64),
+) -> Frame {
+    Frame {
+        left: ((width - chart_w) / 2 + left) as i32,
+        top: (TITLE_H + SEC_TOP) as i32,
+        size,
+        x: (x0, x0 + f64::from(size.0 - 1) / scale),
+        y: (y1 - f64::from(size.1 - 1) / scale, y1),
+    }
 }
 
 impl Render for SectionPlot<'_> {

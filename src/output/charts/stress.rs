@@ -13,6 +13,7 @@ use plotters::coord::Shift;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, VPos};
 
+use super::section::equal_aspect_frame;
 use super::{
     axis_title_style, draw_axes, ensure_font, finite_runs, nice_ticks, put_text, text, text_width,
     tick_style, widest_tick_label, write_chart, x_ticks, y_ticks, AxisLabels, ChartError,
@@ -185,13 +186,7 @@ impl<'a> StressPlot<'a> {
         let width = chart_w.max(MIN_W).max(title_w);
         let legend = Legend::new(entries, width)?;
         let height = TITLE_H + SEC_TOP + plot_h + strip + SEC_BOTTOM + legend.height;
-        let frame = Frame {
-            left: ((width - chart_w) / 2 + left) as i32,
-            top: (TITLE_H + SEC_TOP) as i32,
-            size: (plot_w, plot_h),
-            x: (u0, u0 + f64::from(plot_w - 1) / scale),
-            y: (v1 - f64::from(plot_h - 1) / scale, v1),
-        };
+        let frame = equal_aspect_frame(width, chart_w, left, (plot_w, plot_h), scale, (u0, v1));
         Ok(StressPlot {
             chart,
             size: (width, height),
