@@ -87,7 +87,7 @@ use super::least_squares::Linearised;
 use super::reconcile::{
     floats, predicted_frame, reconcile, strings, Frames, ReconcileError, Settings,
 };
-use crate::engine::{Engine, EngineError};
+use crate::engine::{Engine, EngineError, ResolvedResolution, RunPlan};
 use crate::model::scenario::Calibration;
 use crate::model::{Scenario, Scene};
 
@@ -265,19 +265,17 @@ impl Problem<'_> {
             .map_err(CalibrateError::Apply)?;
         let mut sc = self.scenario.clone();
         sc.calibration = cal.clone();
-        if finer != 1.0 {
-            let r = crate::engine::resolution::resolve(&scene, &sc);
-            sc.resolution.layer_thickness = Some(finer * r.layer_thickness);
-            sc.resolution.marker_spacing = Some(finer * r.marker_spacing);
-            sc.resolution.draw_increment = Some(r.draw_increment);
-            sc.resolution.max_marker_move = Some(r.max_marker_move);
-        }
-        let out = Engine::new(&scene, &sc)
-            .map_err(|source| CalibrateError::Engine {
-                calibration: describe(cal),
-                source,
-            })?
-            .run(&mut |_, _| {});
+        let r = crate::engine::resolution::resolve(&scene, &sc);
+        let res = ResolvedResolution {
+            layer_thickness: finer * r.layer_thickness,
+            marker_spacing: finer * r.marker_spacing,
+            ..r
+        };
+        let plan = RunPlan::at(&scene, &sc, res).map_err(|source| CalibrateError::Engine {
+            calibration: describe(cal),
+            source,
+        })?;
+        let out = Engine::with_plan(&scene, &sc, plan).run(&mut |_, _| {});
         let frames = Frames {
             predicted: predicted_frame(&out.extraction, &scene)?,
             records: self.records.clone(),

@@ -43,7 +43,7 @@ use std::path::Path;
 use std::time::Instant;
 
 use crate::engine::result::{ResolvedResolution, RunOutput};
-use crate::engine::{resolution, Engine, EngineError};
+use crate::engine::{resolution, Engine, EngineError, RunPlan};
 use crate::model::{Scenario, Scene};
 use crate::output::charts::{sweep_chart, ChartError, SweepPoint};
 use crate::output::run::{f64s, i64s, write_table};
@@ -163,18 +163,14 @@ fn run_at(
     repeats: usize,
 ) -> Result<(RunOutput, f64), SweepError> {
     let mut sc = base.clone();
-    sc.resolution.layer_thickness = Some(res.layer_thickness);
-    sc.resolution.marker_spacing = Some(res.marker_spacing);
-    sc.resolution.draw_increment = Some(res.draw_increment);
-    sc.resolution.max_marker_move = Some(res.max_marker_move);
     sc.flow.enforce_stability = false;
+    let plan =
+        RunPlan::at(scene, &sc, *res).map_err(|source| SweepError::Engine { mult, source })?;
     let mut times = Vec::new();
     let mut last = None;
     for _ in 0..repeats.max(1) {
         let t = Instant::now();
-        let out = Engine::new(scene, &sc)
-            .map_err(|source| SweepError::Engine { mult, source })?
-            .run(&mut |_, _| {});
+        let out = Engine::with_plan(scene, &sc, plan.clone()).run(&mut |_, _| {});
         times.push(t.elapsed().as_secs_f64());
         last = Some(out);
     }

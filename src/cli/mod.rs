@@ -9,7 +9,7 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand, ValueEnum};
 
-use crate::engine::{resolution, stability, Engine, EngineError};
+use crate::engine::{Engine, EngineError, RunPlan};
 use crate::model::demo::{self, DemoScale};
 use crate::model::load::{load_scene, InputFile, LoadedScene};
 use crate::model::scenario::ScenarioError;
@@ -322,8 +322,11 @@ fn validate(a: InputArgs) -> Result<ExitCode> {
         eprintln!("warning: {w}");
     }
     let s = &l.scene;
-    match stability::assess(s, &sc, &resolution::resolve(s, &sc)) {
-        Ok(warnings) => warnings.iter().for_each(|w| eprintln!("warning: {w}")),
+    match RunPlan::new(s, &sc) {
+        Ok(plan) => plan
+            .warnings()
+            .iter()
+            .for_each(|w| eprintln!("warning: {}", w.message)),
         Err(refused) => {
             eprintln!("error: {refused}");
             return Ok(ExitCode::from(1));

@@ -47,6 +47,7 @@ pub mod fragmentation;
 mod height_of_draw;
 pub mod imz;
 pub mod markers;
+pub mod plan;
 pub mod resolution;
 pub mod result;
 pub mod rilling;
@@ -65,6 +66,7 @@ use fragmentation::SizeDist;
 use height_of_draw::tributary;
 use imz::{DiskMotion, Ground, Imz, ImzGeom, ImzGrid, ImzParams, Mobilised};
 use markers::{Bins, DrawnMarkers, Lattice, Markers, MotionField, WallReach};
+pub use plan::RunPlan;
 pub use result::*;
 
 /// Engine errors (bad settings that validation cannot see).
@@ -159,18 +161,22 @@ pub struct Engine<'a> {
 }
 
 impl<'a> Engine<'a> {
-    /// Sets up the lattice and one IMZ per drawpoint.
+    /// Sets up the lattice and one IMZ per drawpoint, at the scenario's own plan
+    /// ([`RunPlan::new`]).
     pub fn new(scene: &'a Scene, scenario: &'a Scenario) -> Result<Engine<'a>, EngineError> {
+        Ok(Engine::with_plan(
+            scene,
+            scenario,
+            RunPlan::new(scene, scenario)?,
+        ))
+    }
+
+    /// Sets up the lattice and one IMZ per drawpoint, at a plan already made and checked
+    /// ([`RunPlan`]).
+    pub fn with_plan(scene: &'a Scene, scenario: &'a Scenario, plan: RunPlan) -> Engine<'a> {
         let bm = &scene.blocks;
-        let res = resolution::resolve(scene, scenario);
+        let res = plan.resolution();
         let lattice = Lattice::new(bm, res.marker_spacing);
-        if lattice.len() > MAX_SITES {
-            return Err(EngineError::TooManySites {
-                spacing: res.marker_spacing,
-                sites: lattice.len(),
-                limit: MAX_SITES,
-            });
-        }
         let unit_mass = lattice.unit_masses(bm);
         let max = bm.max_corner();
         let diag = ((max[0] - bm.origin[0]).powi(2) + (max[1] - bm.origin[1]).powi(2)).sqrt();
@@ -201,11 +207,7 @@ impl<'a> Engine<'a> {
             resolution: res,
             ..Default::default()
         };
-        out.warnings = stability::assess(scene, scenario, &res)
-            .map_err(EngineError::Refused)?
-            .into_iter()
-            .map(|m| RunWarning::general(WarningRule::Stability, m))
-            .collect();
+        out.warnings = plan.into_warnings();
         out.extraction.grades = vec![Vec::new(); bm.grades.len()];
         out.extraction.lithology = vec![Vec::new(); bm.lithology_names.len()];
         if scenario.mechanisms.fragmentation {
@@ -216,7 +218,7 @@ impl<'a> Engine<'a> {
                 )));
             }
         }
-        Ok(Engine {
+        Engine {
             scene,
             scenario,
             resolution: res,
@@ -264,7 +266,7 @@ impl<'a> Engine<'a> {
             air_col: vec![0.0; bm.dims[0] * bm.dims[1]],
             block_mass: vec![0.0; bm.len()],
             cadence,
-        })
+        }
     }
 
     /// Whether markers carry individual sizes (a size mechanism is on).

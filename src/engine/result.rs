@@ -179,6 +179,9 @@ pub struct MarkerSnapshot {
 pub enum WarningRule {
     /// The method is degraded for the scene (`engine::stability`), one per rule.
     Stability,
+    /// The run plan changed a resolution it was given, for a physical rule
+    /// (`engine::plan`).
+    Resolution,
     /// A mechanism is on but some of its inputs are missing.
     Input,
     /// A drawpoint is scheduled in a period while the ground above it has not caved:

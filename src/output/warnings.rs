@@ -11,7 +11,15 @@ const WORST: usize = 3;
 pub fn summary(warnings: &[RunWarning]) -> Vec<String> {
     use WarningRule::*;
     let mut lines = Vec::new();
-    for rule in [Stability, Input, Uncaved, Short, AirGap, MassBalance] {
+    for rule in [
+        Stability,
+        Resolution,
+        Input,
+        Uncaved,
+        Short,
+        AirGap,
+        MassBalance,
+    ] {
         let of: Vec<&RunWarning> = warnings.iter().filter(|w| w.rule == rule).collect();
         if of.is_empty() {
             continue;
@@ -19,7 +27,9 @@ pub fn summary(warnings: &[RunWarning]) -> Vec<String> {
         let per = per_drawpoint(&of);
         let total: f64 = per.iter().map(|p| p.2).sum();
         match rule {
-            Stability | Input | MassBalance => lines.extend(of.iter().map(|w| w.message.clone())),
+            Stability | Resolution | Input | MassBalance => {
+                lines.extend(of.iter().map(|w| w.message.clone()))
+            }
             Uncaved => lines.push(format!(
                 "{} drawpoint-periods at {} drawpoints scheduled under ground that has not caved, {} in all, nothing drawn; worst {}; see extraction.status",
                 of.len(),

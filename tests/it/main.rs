@@ -12,6 +12,7 @@ mod layering;
 mod massflow;
 mod mechanisms;
 mod output;
+mod plan;
 mod props;
 mod records;
 mod rilling;
