@@ -10,6 +10,10 @@
 //! path in `src/` and fails on one). [`docs`] holds the notes on the method, its
 //! validation and its performance.
 #![warn(missing_docs)]
+// `!(x > 0.0)` is how this crate says "not a positive number, NaN included": a NaN input
+// takes the same branch as a non-positive one. `partial_cmp` would say the same at more
+// length.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod analysis;
 pub mod cli;

@@ -19,7 +19,8 @@
 //!    with every zone at one value, a zone's rows also feel its neighbours' factor (a
 //!    drawpoint near a contact draws both lithologies), so when several zones are away from
 //!    1, each zone's coarse best is pulled towards the others'.
-//! 1b. **one zone at a time** (several zones): each zone over the coarse grid with the
+//!
+//!    1b. **one zone at a time** (several zones): each zone over the coarse grid with the
 //!    others at their coarse best, K × grid runs; each zone takes its best on all rows.
 //!    This finds the right valley where the first pass has two (on the three-zone truth of
 //!    the tests with records from a run at 0.7 times the fit's h and spacing, Primos' coarse
@@ -549,7 +550,8 @@ pub fn calibrate(
     }
 
     // 3. Globals, zones fixed.
-    let globals: [(bool, &str, fn(&mut Calibration) -> &mut f64); 2] = [
+    type Global = (bool, &'static str, fn(&mut Calibration) -> &mut f64);
+    let globals: [Global; 2] = [
         (cfg.fit_n1, "n1_factor", |c| &mut c.n1_factor),
         (cfg.fit_friction, "friction_factor", |c| {
             &mut c.friction_factor

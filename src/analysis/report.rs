@@ -41,6 +41,8 @@ pub struct ReportInfo {
 /// belong to none). A drawpoint's column is then drawn down layer by layer from its base
 /// up: each layer adds its in-situ solids ρ_s (1 − n0) V and their mass-weighted grade.
 /// Returns, per drawpoint, (cumulative tonnes at the top of each layer, layer grade).
+// The level index k walks the block grid (i, j, k) and the per-drawpoint levels at once.
+#[allow(clippy::needless_range_loop)]
 pub fn block_grade_curves(scene: &Scene, grade: usize) -> Vec<Vec<(f64, f64)>> {
     let (bm, dp) = (&scene.blocks, &scene.drawpoints);
     let n = dp.len();

@@ -285,16 +285,16 @@ fn grade_rmse_from(out: &RunOutput, reference: &RunOutput, first: i64) -> f64 {
         .map(|i| (key(&out.extraction, i), i))
         .collect();
     let (mut sq, mut sum, mut n) = (0.0, 0.0, 0usize);
-    for j in 0..reference.extraction.period.len() {
+    for (j, &grj) in gr.iter().enumerate() {
         if reference.extraction.period[j] < first {
             continue;
         }
         let Some(&i) = rows.get(&key(&reference.extraction, j)) else {
             continue;
         };
-        if g[i].is_finite() && gr[j].is_finite() {
-            sq += (g[i] - gr[j]).powi(2);
-            sum += gr[j];
+        if g[i].is_finite() && grj.is_finite() {
+            sq += (g[i] - grj).powi(2);
+            sum += grj;
             n += 1;
         }
     }

@@ -126,7 +126,7 @@ pub const CHECKPOINT_FILE: &str = "checkpoint.bin";
 pub struct SchemaArgs {
     /// Table name (omit to list them).
     pub table: Option<String>,
-    /// Write every schema as <dir>/<table>.json instead.
+    /// Write every schema as `<dir>/<table>.json` instead.
     #[arg(long, value_name = "DIR")]
     pub write: Option<PathBuf>,
 }

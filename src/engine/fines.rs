@@ -306,7 +306,13 @@ mod tests {
             radius,
         };
         let motion: Vec<DiskMotion> = geom.radius.iter().map(|&r| disk(r)).collect();
-        let grid = ImzGrid::build(&[geom.clone()], &[0], [-5.0, -5.0], [10.0, 10.0], 1.0);
+        let grid = ImzGrid::build(
+            std::slice::from_ref(&geom),
+            &[0],
+            [-5.0, -5.0],
+            [10.0, 10.0],
+            1.0,
+        );
         (vec![geom], motion, grid)
     }
 

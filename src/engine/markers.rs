@@ -825,6 +825,10 @@ impl MotionField<'_> {
     }
 }
 
+/// A hook that adds to a marker's step before it is applied (fines percolation): the
+/// markers, the marker's row and its step. Pure per marker, like the step itself.
+pub type StepHook<'a> = &'a (dyn Fn(&Markers, usize, &mut Step) + Sync);
+
 /// Moves every marker once (parallel, pure per marker, so the result does not depend on
 /// the number of threads). Returns the rows drawn, in row order, with their drawpoint.
 /// `extra` may add to each marker's step before it is applied (fines percolation); it must
@@ -832,7 +836,7 @@ impl MotionField<'_> {
 pub fn move_markers(
     mk: &mut Markers,
     field: &MotionField,
-    extra: Option<&(dyn Fn(&Markers, usize, &mut Step) + Sync)>,
+    extra: Option<StepHook>,
 ) -> Vec<(usize, u32)> {
     let Some(extra) = extra else {
         // No hook reads the markers: step and apply in one pass. A marker's step depends
@@ -905,7 +909,7 @@ pub fn move_markers(
 pub fn move_rows(
     mk: &mut Markers,
     fields: &[MotionField],
-    extra: Option<&(dyn Fn(&Markers, usize, &mut Step) + Sync)>,
+    extra: Option<StepHook>,
     rows: &[u32],
     cadence: Option<(&Cadence, u64)>,
 ) -> Vec<(usize, u32)> {

@@ -414,8 +414,8 @@ impl<'a> Engine<'a> {
             self.rill(period);
         }
         self.close_period(p, period, &drawing);
-        for d in 0..row.len() {
-            self.sched_cum[d] += row[d];
+        for (cum, t) in self.sched_cum.iter_mut().zip(row) {
+            *cum += t;
         }
     }
 
@@ -492,8 +492,7 @@ impl<'a> Engine<'a> {
             step: u,
         };
         let hook = |mk: &Markers, k: usize, st: &mut markers::Step| perc.apply(mk, k, st);
-        let extra: Option<&(dyn Fn(&Markers, usize, &mut markers::Step) + Sync)> =
-            self.scenario.mechanisms.fines.then_some(&hook);
+        let extra: Option<markers::StepHook> = self.scenario.mechanisms.fines.then_some(&hook);
         let drawn = if cadence.max_level == 0 && rows.len() == self.markers.len() {
             // Every marker is active: the contiguous pass (the same steps, no row windows).
             markers::move_markers(&mut self.markers, &fields[0], extra)
@@ -590,7 +589,7 @@ impl<'a> Engine<'a> {
         self.bins.update(&self.markers, &rows, cells);
         self.rows = rows;
         self.mark_moved(cells);
-        drawn.sort_unstable_by(|a, b| b.0.cmp(&a.0));
+        drawn.sort_unstable_by_key(|b| std::cmp::Reverse(b.0));
         for (k, d) in drawn {
             let t = &mut self.tally[d as usize];
             t.0 += self.markers.mass[k];
@@ -746,7 +745,9 @@ impl<'a> Engine<'a> {
         let sized = self.sized();
         let seed = self.scenario.seed;
         let engulfed = &self.engulfed;
-        let scanned: Vec<(Vec<usize>, Vec<(usize, f64)>)> = drawing
+        // Per drawing IMZ: the sites it engulfs, and per disk the nearest site beyond it.
+        type Scan = (Vec<usize>, Vec<(usize, f64)>);
+        let scanned: Vec<Scan> = drawing
             .par_iter()
             .map(|&d| {
                 let imz = &self.imzs[d];

@@ -144,9 +144,9 @@ impl BlockModel {
             return problems;
         }
         let cols = [&self.x, &self.y, &self.z];
-        for a in 0..3 {
-            let min = cols[a].iter().cloned().fold(f64::INFINITY, f64::min);
-            let max = cols[a].iter().cloned().fold(f64::NEG_INFINITY, f64::max);
+        for (a, col) in cols.iter().enumerate() {
+            let min = col.iter().cloned().fold(f64::INFINITY, f64::min);
+            let max = col.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
             self.origin[a] = min - 0.5 * self.size[a];
             self.dims[a] = ((max - min) / self.size[a]).round() as usize + 1;
         }

@@ -1,6 +1,6 @@
 //! The output layer: everything a run or a command writes to disk.
 //!
-//! - [`parquet`](self::parquet): atomic file writing ([`AtomicFile`], [`write_atomic`]) and the one Parquet
+//! - [`parquet`]: atomic file writing ([`AtomicFile`], [`write_atomic`]) and the one Parquet
 //!   writer ([`write_parquet`]) that every table goes through.
 //! - [`run`]: a run directory — extraction report, IMZ geometry, drawn markers (IEZ),
 //!   partitioned marker states and the manifest ([`write_run`]).
@@ -8,9 +8,9 @@
 //! - [`manifest`]: the run manifest (`manifest.json`).
 //! - [`inputs`]: a [`Scene`](crate::model::Scene) written back as input tables and a scenario
 //!   file (used by `caveflow demo`).
-//! - [`records`](self::records): production records (the demo's synthetic ones).
+//! - [`records`]: production records (the demo's synthetic ones).
 //! - `charts`: PNG and SVG charts.
-//! - [`stress`](self::stress): the stress logic's tables and charts.
+//! - [`stress`]: the stress logic's tables and charts.
 //!
 //! # Why every file is written atomically
 //!

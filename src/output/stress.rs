@@ -28,18 +28,20 @@ fn strings(v: Vec<String>) -> ArrayRef {
 
 /// Writes `stress_levels.parquet` and `stress_sections.parquet` into `dir`; returns the paths.
 pub fn write_stress(dir: &Path, fields: Vec<StressField>) -> Result<Vec<PathBuf>, OutputError> {
-    let mut lv: (Vec<i64>, Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>) = Default::default();
+    let mut period: Vec<i64> = Vec::new();
+    // z, cave area, cave perimeter, σv at the cave, mean σv.
+    let mut lv: [Vec<f64>; 5] = Default::default();
     let mut counts: (Vec<i64>, Vec<i64>, Vec<i64>) = Default::default();
     let mut ratios: (Vec<f64>, Vec<f64>, Vec<f64>, Vec<i64>) = Default::default();
     let mut sec = SectionColumns::default();
     for f in fields {
         let l = f.levels;
-        lv.0.extend(std::iter::repeat_n(f.period, l.z.len()));
-        lv.1.extend(l.z);
-        lv.2.extend(l.cave_area);
-        lv.3.extend(l.cave_perimeter);
-        lv.4.extend(l.sigma_v_cave);
-        lv.5.extend(l.sigma_v_mean);
+        period.extend(std::iter::repeat_n(f.period, l.z.len()));
+        lv[0].extend(l.z);
+        lv[1].extend(l.cave_area);
+        lv[2].extend(l.cave_perimeter);
+        lv[3].extend(l.sigma_v_cave);
+        lv[4].extend(l.sigma_v_mean);
         counts.0.extend(l.bins);
         counts.1.extend(l.groups);
         counts.2.extend(l.pillars);
@@ -63,13 +65,14 @@ pub fn write_stress(dir: &Path, fields: Vec<StressField>) -> Result<Vec<PathBuf>
         }
     }
     let levels = dir.join("stress_levels.parquet");
+    let [z, cave_area, cave_perimeter, sigma_v_cave, sigma_v_mean] = lv;
     let fixed = vec![
-        ("period", i64s(lv.0)),
-        ("z", f64s(lv.1)),
-        ("cave_area", f64s(lv.2)),
-        ("cave_perimeter", f64s(lv.3)),
-        ("sigma_v_cave", f64s_or_null(lv.4)),
-        ("sigma_v_mean", f64s_or_null(lv.5)),
+        ("period", i64s(period)),
+        ("z", f64s(z)),
+        ("cave_area", f64s(cave_area)),
+        ("cave_perimeter", f64s(cave_perimeter)),
+        ("sigma_v_cave", f64s_or_null(sigma_v_cave)),
+        ("sigma_v_mean", f64s_or_null(sigma_v_mean)),
         ("bins", i64s(counts.0)),
         ("groups", i64s(counts.1)),
         ("pillars", i64s(counts.2)),

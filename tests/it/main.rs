@@ -1,5 +1,8 @@
 //! The one integration-test binary (ripgrep/polars style): one module per layer.
 
+// As in the crate: `!(x <= tol)` fails on NaN as well as on a value beyond the tolerance.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 #[cfg(feature = "analysis")]
 mod backanalysis;
 mod balance;

@@ -651,8 +651,8 @@ fn demo_small_panel() {
     let column = b.z_max() - EXTRACTION_LEVEL_Z;
     assert!((150.0..=180.0).contains(&column), "{column}");
     let extent = b.max_corner();
-    for a in 0..2 {
-        let span = extent[a] - b.origin[a];
+    for (a, (hi, lo)) in extent.iter().zip(b.origin).take(2).enumerate() {
+        let span = hi - lo;
         assert!((90.0..=115.0).contains(&span), "axis {a}: {span} m");
     }
     assert_drawpoints_over_blocks(&s);

@@ -50,7 +50,7 @@ const ARC_SAMPLES: usize = 720;
 const YIELD_TOL: f64 = 1e-9;
 
 /// Area and perimeter of a union of disks (x, y, r): exact for one disk; for several, the
-/// exposed arcs traced at [`ARC_SAMPLES`] points per circle, area by Green's theorem.
+/// exposed arcs traced at `ARC_SAMPLES` points per circle, area by Green's theorem.
 pub fn union_area_perimeter(disks: &[(f64, f64, f64)]) -> (f64, f64) {
     if let [(_, _, r)] = disks {
         return (PI * r * r, 2.0 * PI * r);
@@ -337,8 +337,11 @@ pub(super) fn cave_slice(bm: &BlockModel, period: i64, grid: &Grid, z: f64) -> C
             }
             let open = |di: i64, dj: i64| {
                 let (a, b) = (i as i64 + di, j as i64 + dj);
-                !(a >= 0 && b >= 0 && (a as usize) < nx && (b as usize) < ny)
-                    || !flow[a as usize + nx * b as usize]
+                !(a >= 0
+                    && b >= 0
+                    && (a as usize) < nx
+                    && (b as usize) < ny
+                    && flow[a as usize + nx * b as usize])
             };
             edges += [(1, 0), (-1, 0), (0, 1), (0, -1)]
                 .into_iter()

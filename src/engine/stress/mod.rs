@@ -295,7 +295,7 @@ pub fn compute(
             sec.zone.extend(&r.zone);
         }
         let nu = spec.u.len();
-        sec.shape = (nu, if nu > 0 { sec.x.len() / nu } else { 0 });
+        sec.shape = (nu, sec.x.len().checked_div(nu).unwrap_or(0));
         decorate(&mut sec, geoms);
         out.sections.push(sec);
     }
@@ -361,7 +361,7 @@ mod tests {
             }
             assert!(n >= 30, "levels with bins: {n}");
             // Bins: at least one cluster (two overlapping IMZs count once).
-            assert!(lv.bins.iter().any(|&b| b == 3));
+            assert!(lv.bins.contains(&3));
         }
     }
 }

@@ -30,6 +30,10 @@ impl Orientation {
     }
 }
 
+/// One IMZ cut by a vertical section: its axis u along the section, and its disks cut by
+/// the plane as (z_base, z_top, half chord).
+pub type CutImz = (f64, Vec<(f64, f64, f64)>);
+
 /// Stress on one section, on a regular grid of `shape.0` × `shape.1` points (u fastest):
 /// (Northing, z) for N-S, (Easting, z) for E-W, (Easting, Northing) for plan.
 #[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -56,9 +60,9 @@ pub struct StressSection {
     pub ratio: Vec<f64>,
     /// Zone of each point.
     pub zone: Vec<Zone>,
-    /// Vertical sections: IMZ disks cut by the plane, per drawpoint: (axis u, [(z_base,
-    /// z_top, half chord)]). Plan sections: IMZ circles (x, y, r) in `circles`.
-    pub imz: Vec<(f64, Vec<(f64, f64, f64)>)>,
+    /// Vertical sections: IMZ disks cut by the plane, per drawpoint. Plan sections: IMZ
+    /// circles (x, y, r) in `circles`.
+    pub imz: Vec<CutImz>,
     /// Plan sections: IMZ disks cut by the plane (x, y, r).
     pub circles: Vec<(f64, f64, f64)>,
     /// Drawpoints on (vertical) or under (plan) the section: (u, v, drawpoint index).

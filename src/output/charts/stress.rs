@@ -103,7 +103,7 @@ pub fn stress_chart(path: &Path, chart: &StressChart) -> Result<(), ChartError> 
         message,
     };
     let ok = |r: (f64, f64)| r.0.is_finite() && r.1.is_finite() && r.1 > r.0;
-    if !(ok(chart.u_range) && ok(chart.v_range)) || !(chart.cell > 0.0) {
+    if !(ok(chart.u_range) && ok(chart.v_range) && chart.cell > 0.0) {
         return Err(input(format!(
             "stress section ranges {:?} {:?} or cell {} cannot be drawn",
             chart.u_range, chart.v_range, chart.cell
