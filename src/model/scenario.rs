@@ -50,6 +50,9 @@ pub struct Inputs {
     pub schedule: PathBuf,
     /// Periods table (optional with the wide schedule, whose headers name the periods).
     pub periods: Option<PathBuf>,
+    /// Trace points to follow through the draw (MassFlow's trace-marker file: `x y z`
+    /// rows, no header; `io::TracePoints`). Optional; `--trace` sets it.
+    pub trace: Option<PathBuf>,
 }
 
 /// Resolution knobs. Each has a measured cost and error (`docs::performance`). The defaults are
@@ -617,6 +620,9 @@ impl Scenario {
             abs(p);
         }
         if let Some(p) = self.inputs.periods.as_mut() {
+            abs(p);
+        }
+        if let Some(p) = self.inputs.trace.as_mut() {
             abs(p);
         }
         abs(&mut self.outputs.dir);
