@@ -81,6 +81,10 @@ pub struct InputArgs {
     /// Periods table (period, name, days).
     #[arg(long)]
     pub periods: Option<PathBuf>,
+    /// Trace points to follow through the draw (MassFlow's trace file: `x y z` rows, no
+    /// header); each must lie inside the block model. `run` writes trace.parquet.
+    #[arg(long)]
+    pub trace: Option<PathBuf>,
     /// Override any scenario setting, e.g. --set resolution.layer_thickness=0.02
     /// (repeatable).
     #[arg(long = "set", value_name = "KEY=VALUE")]
@@ -282,6 +286,9 @@ pub fn scenario(a: &InputArgs) -> Result<Scenario> {
     if let Some(p) = &a.periods {
         sc.inputs.periods = Some(abs(p));
     }
+    if let Some(p) = &a.trace {
+        sc.inputs.trace = Some(abs(p));
+    }
     Ok(sc)
 }
 
@@ -394,7 +401,7 @@ fn run(a: RunArgs) -> Result<ExitCode> {
             eprintln!("resuming at period {} of {}", next + 1, scene.periods.len());
             (e, next)
         }
-        _ => (Engine::new(scene, &sc)?, 0),
+        _ => (Engine::new(scene, &sc)?.with_trace(&loaded.trace), 0),
     };
     let bar = progress(scene.periods.len() as u64, "periods");
     bar.set_position(first as u64);

@@ -11,6 +11,7 @@
 //! - [`records`](self::records): production records (the demo's synthetic ones).
 //! - `charts`: PNG and SVG charts.
 //! - [`stress`](self::stress): the stress logic's tables and charts.
+//! - [`trace`](self::trace): the trace points' table.
 //!
 //! # Why every file is written atomically
 //!
@@ -30,6 +31,7 @@ pub mod parquet;
 pub mod records;
 pub mod run;
 pub mod stress;
+pub mod trace;
 pub mod warnings;
 
 pub use self::manifest::Manifest;

@@ -9,6 +9,7 @@
 //! <dir>/dataset/<table>/scenario=<name>/period=<N>/part-0.parquet   (outputs.hive; see
 //!                                           output::dataset)
 //! <dir>/stress_levels.parquet, <dir>/stress_sections.parquet   (only with mechanisms.stress)
+//! <dir>/trace.parquet                       (only with trace points; output::trace)
 //! <dir>/manifest.json                       (written last)
 //! ```
 //!
@@ -63,7 +64,7 @@ fn arrow_err(path: &Path) -> impl FnOnce(ArrowError) -> OutputError + '_ {
 }
 
 /// Drawpoint names for drawpoint indices; [`u32::MAX`] (not drawn) becomes "".
-fn names(index: &[u32], names: &[String]) -> ArrayRef {
+pub(crate) fn names(index: &[u32], names: &[String]) -> ArrayRef {
     Arc::new(StringArray::from_iter_values(
         index
             .iter()
@@ -294,6 +295,10 @@ pub fn write_run_with(
 
     if !run.stress.is_empty() {
         written.extend(super::stress::write_stress(dir, run.stress)?);
+    }
+
+    if !run.trace.trace_id.is_empty() {
+        written.push(super::trace::write_trace(dir, scene, run.trace)?);
     }
 
     let path = dir.join("manifest.json");
