@@ -120,6 +120,10 @@ pub struct RunArgs {
     /// Run only the first N periods of the schedule (a trial run).
     #[arg(long, value_name = "N")]
     pub keep_periods: Option<usize>,
+    /// Also write MassFlow's report layouts into massflow/ (outputs.massflow): the period
+    /// extraction report, the marker and trace reports and the daily trace CSV.
+    #[arg(long)]
+    pub massflow_reports: bool,
 }
 
 /// Name of the checkpoint file in the output directory.
@@ -355,6 +359,7 @@ fn run(a: RunArgs) -> Result<ExitCode> {
     if let Some(out) = &a.out {
         sc.outputs.dir = out.clone();
     }
+    sc.outputs.massflow |= a.massflow_reports;
     if let Some(n) = a.threads {
         rayon::ThreadPoolBuilder::new()
             .num_threads(n)
@@ -428,6 +433,11 @@ fn run(a: RunArgs) -> Result<ExitCode> {
     } else {
         Vec::new()
     };
+    let massflow = if sc.outputs.massflow {
+        output::massflow::write_reports(dir, scene, &out)?
+    } else {
+        Vec::new()
+    };
     let manifest = Manifest::new(
         command,
         &sc,
@@ -462,7 +472,7 @@ fn run(a: RunArgs) -> Result<ExitCode> {
     );
     println!(
         "wrote {} files and {} charts to {}",
-        files.len(),
+        files.len() + massflow.len(),
         charts.len(),
         dir.display()
     );

@@ -225,6 +225,10 @@ pub struct Outputs {
     /// The `scenario=` value of the datasets. Default: the scenario file's stem (`run` when
     /// the tables are given on the command line).
     pub scenario_name: Option<String>,
+    /// Also write MassFlow's report layouts under `<dir>/massflow/` (`output::massflow`):
+    /// the period extraction report, the marker and trace reports and the daily trace CSV.
+    /// The Parquet tables stay the primary output. `--massflow-reports` sets it.
+    pub massflow: bool,
 }
 
 impl Default for Outputs {
@@ -239,6 +243,7 @@ impl Default for Outputs {
             hive: true,
             hive_periods_per_partition: 0,
             scenario_name: None,
+            massflow: false,
         }
     }
 }

@@ -12,6 +12,7 @@
 //! - `charts`: PNG and SVG charts.
 //! - [`stress`](self::stress): the stress logic's tables and charts.
 //! - [`trace`](self::trace): the trace points' table.
+//! - [`massflow`]: MassFlow's report layouts (`outputs.massflow`).
 //!
 //! # Why every file is written atomically
 //!
@@ -27,6 +28,7 @@ pub mod dataset;
 pub mod figures;
 pub mod inputs;
 pub mod manifest;
+pub mod massflow;
 pub mod parquet;
 pub mod records;
 pub mod run;

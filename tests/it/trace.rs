@@ -233,3 +233,139 @@ fn a_trace_point_outside_the_model_is_refused() {
     }
     assert!(!elsewhere.path().join("out").exists());
 }
+
+/// A report's rows as fields, after `skip` lines.
+fn tsv(text: &str, skip: usize) -> (Vec<String>, Vec<Vec<String>>) {
+    let mut lines = text.lines().skip(skip);
+    let header = lines
+        .next()
+        .unwrap()
+        .split('\t')
+        .map(String::from)
+        .collect();
+    let rows = lines
+        .map(|l| l.split('\t').map(String::from).collect())
+        .collect();
+    (header, rows)
+}
+
+fn f64_col<'a>(b: &'a RecordBatch, name: &str) -> &'a arrow::array::Float64Array {
+    b.column_by_name(name)
+        .unwrap()
+        .as_primitive::<Float64Type>()
+}
+
+#[test]
+fn trace_and_massflow_reports_end_to_end() {
+    let (dir, scenario) = scene_files("0 0 0.3\n0.1 -0.05 0.5\n0.35 0.35 0.05\n");
+    let scenario = scenario.to_str().unwrap();
+    let out = caveflow(
+        &[
+            "run",
+            scenario,
+            "--trace",
+            "trace.txt",
+            "--massflow-reports",
+            "--out",
+            "out",
+        ],
+        dir.path(),
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let run = dir.path().join("out");
+    let n_periods = 8;
+
+    // trace.parquet: one row per point per period, with the period's number and name.
+    let t = read_parquet(&run.join("trace.parquet"));
+    assert_eq!(t.num_rows(), 3 * n_periods);
+    let names = t.column_by_name("period_name").unwrap().as_string::<i32>();
+    assert_eq!(names.value(0), "1");
+    let states = t.column_by_name("state").unwrap().as_string::<i32>();
+    assert_eq!(states.value(3 * n_periods - 1), "in_situ");
+    assert!(run.join("charts/trace.png").exists());
+
+    // The period extraction report agrees with extraction.parquet to its printed precision.
+    let ex = read_parquet(&run.join("extraction.parquet"));
+    let text = fs::read_to_string(run.join("massflow/extraction_report.txt")).unwrap();
+    let mut lines = text.lines();
+    assert_eq!(lines.next(), Some("CurPrd\tCurPrdName\tDaysSolved"));
+    assert_eq!(lines.next(), Some("8\t8\t8"));
+    let (header, rows) = tsv(&text, 2);
+    assert_eq!(
+        header,
+        [
+            "DPName",
+            "Period",
+            "PrdName",
+            "CumMass",
+            "RingMass",
+            "PeriodMass",
+            "elevMass"
+        ]
+    );
+    assert_eq!(rows.len(), ex.num_rows());
+    let dp = ex.column_by_name("drawpoint").unwrap().as_string::<i32>();
+    let period = ex
+        .column_by_name("period")
+        .unwrap()
+        .as_primitive::<Int64Type>();
+    let (tonnes, cum, elev) = (
+        f64_col(&ex, "tonnes"),
+        f64_col(&ex, "cum_tonnes"),
+        f64_col(&ex, "elev"),
+    );
+    let mut worst = [0.0f64; 3];
+    for (k, r) in rows.iter().enumerate() {
+        assert_eq!(r[0], dp.value(k));
+        assert_eq!(r[1], period.value(k).to_string());
+        assert_eq!(r[2], period.value(k).to_string());
+        let v = |i: usize| r[i].parse::<f64>().unwrap();
+        assert_eq!(v(4), 0.0);
+        let grade_t = tonnes.value(k) * elev.value(k) / 100.0;
+        for (w, (got, want, tol)) in worst.iter_mut().zip([
+            (v(3), cum.value(k), 5e-4),
+            (v(5), tonnes.value(k), 5e-4),
+            (v(6), grade_t, 5e-7),
+        ]) {
+            let e = (got - want).abs();
+            assert!(e <= tol * (1.0 + 1e-9), "row {k}: {got} against {want}");
+            *w = w.max(e);
+        }
+    }
+    eprintln!(
+        "{} rows read back: largest differences {:.1e} t (CumMass), {:.1e} t (PeriodMass), {:.1e} t (elevMass)",
+        rows.len(),
+        worst[0],
+        worst[1],
+        worst[2]
+    );
+
+    // The marker and trace reports at the last period, and the daily trace file.
+    let mf = run.join("massflow");
+    let (mh, markers) = tsv(
+        &fs::read_to_string(mf.join("marker_report_8.txt")).unwrap(),
+        0,
+    );
+    let (th, traces) = tsv(
+        &fs::read_to_string(mf.join("trace_report_8.txt")).unwrap(),
+        0,
+    );
+    assert_eq!(mh, th);
+    assert_eq!(mh.len(), 23, "{mh:?}");
+    assert_eq!(mh[9], "elev");
+    assert_eq!(mh.last().unwrap(), "Type");
+    assert!(!markers.is_empty());
+    assert_eq!(traces.len(), 3);
+    assert_eq!(traces[2][1..4], ["0.350", "0.350", "0.050"]);
+    assert_eq!(traces[2][8], "0", "in situ: not active");
+    assert_eq!(traces[0][22], "1", "a trace marker");
+    let daily = fs::read_to_string(mf.join("trace_daily.csv")).unwrap();
+    let lines: Vec<&str> = daily.lines().collect();
+    assert_eq!(lines[0], "Day,MarkerID,TracerID,Easting,Northing,Elevation");
+    assert_eq!(lines.len(), 1 + 3 * n_periods);
+    assert_eq!(lines[3], "1,3,3,0.350,0.350,0.050");
+}
