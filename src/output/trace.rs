@@ -9,7 +9,7 @@ use std::sync::Arc;
 use arrow::array::{ArrayRef, StringArray};
 
 use super::charts::Section;
-use super::run::{f64s, i64s, names, write_table};
+use super::run::{f64s, i64s, names, states, write_table};
 use super::OutputError;
 use crate::engine::trace::TraceTable;
 use crate::model::{Periods, Scene};
@@ -30,9 +30,6 @@ pub fn write_trace(dir: &Path, scene: &Scene, t: TraceTable) -> Result<PathBuf, 
     let period_names = Arc::new(StringArray::from_iter_values(
         t.period.iter().map(|&p| period_name(&scene.periods, p)),
     )) as ArrayRef;
-    let state = Arc::new(StringArray::from_iter_values(
-        t.state.iter().map(|s| s.name()),
-    )) as ArrayRef;
     let fixed = vec![
         ("trace_id", i64s(t.trace_id)),
         ("period", i64s(t.period)),
@@ -43,7 +40,7 @@ pub fn write_trace(dir: &Path, scene: &Scene, t: TraceTable) -> Result<PathBuf, 
         ("origin_x", f64s(t.origin_x)),
         ("origin_y", f64s(t.origin_y)),
         ("origin_z", f64s(t.origin_z)),
-        ("state", state),
+        ("state", states(&t.state)),
         ("drawpoint", names(&t.drawpoint, &scene.drawpoints.name)),
         ("drawn_period", i64s(t.drawn_period)),
         ("shear_strain", f64s(t.shear_strain)),

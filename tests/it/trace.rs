@@ -5,8 +5,6 @@
 //! (`cargo test ... trace:: -- --nocapture`).
 
 use std::fs;
-use std::path::Path;
-use std::process::Command;
 
 use arrow::array::{AsArray, RecordBatch};
 use arrow::datatypes::{Float64Type, Int64Type};
@@ -18,6 +16,7 @@ use caveflow::model::{Scenario, Scene};
 use caveflow::output::inputs::write_scene;
 use tempfile::TempDir;
 
+use crate::cli::caveflow_in;
 use crate::engine::{assert_identical, scenario};
 use crate::io::expect;
 use crate::output::read_parquet;
@@ -194,14 +193,6 @@ fn scene_files(trace: &str) -> (TempDir, std::path::PathBuf) {
     (dir, scenario)
 }
 
-fn caveflow(args: &[&str], cwd: &Path) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_caveflow"))
-        .args(args)
-        .current_dir(cwd)
-        .output()
-        .unwrap()
-}
-
 #[test]
 fn a_trace_point_outside_the_model_is_refused() {
     let (dir, scenario) = scene_files("# x y z\n0 0 0.3\n\n0.5 0 0.3\n0.1 0.1 -0.2\n");
@@ -226,7 +217,7 @@ fn a_trace_point_outside_the_model_is_refused() {
         if cmd == "run" {
             args.extend(["--out", "out"]);
         }
-        let out = caveflow(&args, elsewhere.path());
+        let out = caveflow_in(&args, elsewhere.path());
         let err = String::from_utf8_lossy(&out.stderr);
         assert_eq!(out.status.code(), Some(1), "{cmd}: {err}");
         assert!(err.contains(&pr.to_string()), "{cmd}: {err}");
@@ -259,7 +250,7 @@ fn f64_col<'a>(b: &'a RecordBatch, name: &str) -> &'a arrow::array::Float64Array
 fn trace_and_massflow_reports_end_to_end() {
     let (dir, scenario) = scene_files("0 0 0.3\n0.1 -0.05 0.5\n0.35 0.35 0.05\n");
     let scenario = scenario.to_str().unwrap();
-    let out = caveflow(
+    let out = caveflow_in(
         &[
             "run",
             scenario,
