@@ -341,14 +341,18 @@ fn validate(a: InputArgs) -> Result<ExitCode> {
         }
     }
     println!(
-        "ok: {} blocks ({} x {} x {} m), {} drawpoints, {} periods, {:.0} t scheduled",
+        "ok: {} blocks ({} x {} x {} m), {} drawpoints, {} periods, {:.0} t scheduled{}",
         s.blocks.len(),
         s.blocks.size[0],
         s.blocks.size[1],
         s.blocks.size[2],
         s.drawpoints.len(),
         s.periods.len(),
-        s.schedule.tonnes.iter().sum::<f64>()
+        s.schedule.tonnes.iter().sum::<f64>(),
+        match l.trace.len() {
+            0 => String::new(),
+            n => format!(", {n} trace points"),
+        }
     );
     Ok(ExitCode::SUCCESS)
 }

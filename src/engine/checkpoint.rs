@@ -3,8 +3,8 @@
 //!
 //! A checkpoint holds everything [`Engine`] changes as it draws: the IMZs, the moving and
 //! drawn markers, the engulfed lattice sites, the mass-balance carries, the trace points
-//! and the output accumulated so far. What the engine derives from the scene (lattice, marker masses,
-//! waste rule, …) is derived again on resume. The encoding is bincode, so every f64
+//! and the output accumulated so far. What the engine derives from the scene (lattice,
+//! marker masses, waste rule, …) is derived again on resume. The encoding is bincode, so every f64
 //! (NaN included) comes back bit for bit, and the outputs of a resumed run are
 //! byte-identical to those of an uninterrupted one.
 //!
