@@ -52,31 +52,33 @@ pub fn write_reports(
         path: out.clone(),
         source,
     })?;
-    let mut files: Vec<(PathBuf, String)> = vec![(
-        out.join("extraction_report.txt"),
+    // Each report is written as soon as it is made: a mine-scale marker report is large.
+    let mut written = Vec::new();
+    let mut write = |name: String, text: String| {
+        let path = out.join(name);
+        write_atomic(&path, text.as_bytes())?;
+        written.push(path);
+        Ok::<(), OutputError>(())
+    };
+    write(
+        "extraction_report.txt".into(),
         extraction_report(scene, &run.extraction),
-    )];
+    )?;
     let traced = !run.trace.trace_id.is_empty();
     for snap in &run.snapshots {
         let p = snap.period;
-        files.push((
-            out.join(format!("marker_report_{p}.txt")),
-            marker_report(scene, snap),
-        ));
+        write(format!("marker_report_{p}.txt"), marker_report(scene, snap))?;
         if traced {
-            files.push((
-                out.join(format!("trace_report_{p}.txt")),
+            write(
+                format!("trace_report_{p}.txt"),
                 trace_report(scene, &run.trace, p),
-            ));
+            )?;
         }
     }
     if traced {
-        files.push((out.join("trace_daily.csv"), trace_daily(scene, &run.trace)));
+        write("trace_daily.csv".into(), trace_daily(scene, &run.trace))?;
     }
-    for (path, text) in &files {
-        write_atomic(path, text.as_bytes())?;
-    }
-    Ok(files.into_iter().map(|f| f.0).collect())
+    Ok(written)
 }
 
 /// Days from the start of the run to the end of period number `period` (0 for a period the
