@@ -118,8 +118,9 @@ impl Trace {
         .all(|&l| l == n)
     }
 
-    /// One engine step in `period`: mobilises the trace points in situ that the grown IMZs
-    /// (`field.geoms`) now hold in caved ground, and moves the moving ones by `field`.
+    /// One engine step in `period`: mobilises the trace points in situ that the grown disks
+    /// of the drawing IMZs (those of `field.grid`) now hold in caved ground, as
+    /// `Engine::engulf` mobilises lattice sites, and moves the moving ones by `field`.
     pub fn step(&mut self, field: &MotionField, period: i64) {
         for k in 0..self.len() {
             let p = self.pos[k];
@@ -129,7 +130,12 @@ impl Trace {
                     let caved = field
                         .ground
                         .is_none_or(|(bm, _)| bm.locate(p).is_some_and(|b| bm.flowable(b, period)));
-                    if !(caved && field.geoms.iter().any(|g| g.contains(p))) {
+                    let geoms = field.geoms;
+                    let held = || {
+                        let mut near = field.grid.at(p[0], p[1]).iter();
+                        near.any(|&d| geoms[d as usize].contains(p))
+                    };
+                    if !(caved && held()) {
                         continue;
                     }
                     self.state[k] = MarkerState::Moving;
