@@ -109,8 +109,11 @@ fn a_point_in_stagnant_ground_never_moves() {
     // Low in a corner of the box (the base angle keeps the IMZ near the opening there), and
     // high in another corner.
     let points = [[0.35, 0.35, 0.05], [-0.375, 0.375, 1.1]];
-    let out = run_traced(&scene, &sc, &points);
+    // A point on the axis in the same run moves: the draw reaches trace points.
+    let out = run_traced(&scene, &sc, &[points[0], points[1], [0.0, 0.0, 0.3]]);
     let t = &out.trace;
+    let moved = rows_of(t, 3);
+    assert_eq!(t.state[*moved.last().unwrap()], MarkerState::Drawn);
     for (i, p) in points.iter().enumerate() {
         let r = final_radius_at(&out, p[2]);
         let a = p[0].hypot(p[1]);
