@@ -1,8 +1,8 @@
 //! Trace markers (MassFlow's trace points, issue 19): given points followed through the draw.
 //!
 //! A trace point is a marker without mass. It starts in situ at its given position; it is
-//! mobilised (moving) at the first step that finds it inside an IMZ disk in caved ground,
-//! as a lattice site is engulfed (`Engine::engulf`); from then on it moves every step by the
+//! mobilised (moving) at the first step that finds it inside a disk of a drawing IMZ, in
+//! caved ground, as a lattice site is engulfed (`Engine::engulf`); from then on it moves every step by the
 //! step's motion field ([`MotionField::step`], the superposed motion of the drawing IMZs),
 //! and it is drawn, credited to the IMZ that moved it most, when it leaves the lowest disk,
 //! exactly as a marker is.
