@@ -408,6 +408,29 @@ pub const MARKERS: TableSpec = TableSpec {
     extra: None,
 };
 
+/// Trace points (`--trace`, `inputs.trace`; `engine::trace`).
+pub const TRACE: TableSpec = TableSpec {
+    name: "trace",
+    description: "One row per trace point per period: where each given point is at the period's end, its state, and who drew it when. Trace points carry no mass and change no other output (`engine::trace`).",
+    fields: &[
+        f("trace_id", I64, "-", "Trace point: its place among the points of the trace file (1, 2, ...)", true, &[]),
+        f("period", I64, "-", "Period number", true, &[]),
+        f("period_name", Str, "-", "Period name (names may repeat; the number is the identity)", true, &[]),
+        f("x", F64, "m", "Easting at the period's end", true, &[]),
+        f("y", F64, "m", "Northing at the period's end", true, &[]),
+        f("z", F64, "m", "Elevation at the period's end", true, &[]),
+        f("origin_x", F64, "m", "Given Easting", true, &[]),
+        f("origin_y", F64, "m", "Given Northing", true, &[]),
+        f("origin_z", F64, "m", "Given elevation", true, &[]),
+        f("state", Str, "-", "in_situ | moving | drawn", true, &[]),
+        f("drawpoint", Str, "-", "Drawpoint that drew it (empty if not drawn)", true, &[]),
+        f("drawn_period", I64, "-", "Period in which it was drawn (-1 if not drawn)", true, &[]),
+        f("shear_strain", F64, "-", "Accumulated shear strain Gamma", true, &[]),
+        f("shear_work", F64, "kPa", "Accumulated shear work Gamma x sigma_n", true, &[]),
+    ],
+    extra: None,
+};
+
 /// Stress on sections (summary §5.3, Figs 24–25): one row per grid point per section.
 pub const STRESS_SECTIONS: TableSpec = TableSpec {
     name: "stress_sections",
@@ -642,6 +665,7 @@ pub const ALL: &[TableSpec] = &[
     IMZ,
     DRAWN,
     MARKERS,
+    TRACE,
     AIR_GAP,
     SURFACE,
     STRESS_SECTIONS,

@@ -81,6 +81,10 @@ pub struct InputArgs {
     /// Periods table (period, name, days).
     #[arg(long)]
     pub periods: Option<PathBuf>,
+    /// Trace points to follow through the draw (MassFlow's trace file: `x y z` rows, no
+    /// header); each must lie inside the block model. `run` writes trace.parquet.
+    #[arg(long)]
+    pub trace: Option<PathBuf>,
     /// Override any scenario setting, e.g. --set resolution.layer_thickness=0.02
     /// (repeatable).
     #[arg(long = "set", value_name = "KEY=VALUE")]
@@ -116,6 +120,10 @@ pub struct RunArgs {
     /// Run only the first N periods of the schedule (a trial run).
     #[arg(long, value_name = "N")]
     pub keep_periods: Option<usize>,
+    /// Also write MassFlow's report layouts into massflow/ (outputs.massflow): the period
+    /// extraction report, the marker and trace reports and the daily trace CSV.
+    #[arg(long)]
+    pub massflow_reports: bool,
 }
 
 /// Name of the checkpoint file in the output directory.
@@ -282,6 +290,9 @@ pub fn scenario(a: &InputArgs) -> Result<Scenario> {
     if let Some(p) = &a.periods {
         sc.inputs.periods = Some(abs(p));
     }
+    if let Some(p) = &a.trace {
+        sc.inputs.trace = Some(abs(p));
+    }
     Ok(sc)
 }
 
@@ -333,14 +344,18 @@ fn validate(a: InputArgs) -> Result<ExitCode> {
         }
     }
     println!(
-        "ok: {} blocks ({} x {} x {} m), {} drawpoints, {} periods, {:.0} t scheduled",
+        "ok: {} blocks ({} x {} x {} m), {} drawpoints, {} periods, {:.0} t scheduled{}",
         s.blocks.len(),
         s.blocks.size[0],
         s.blocks.size[1],
         s.blocks.size[2],
         s.drawpoints.len(),
         s.periods.len(),
-        s.schedule.tonnes.iter().sum::<f64>()
+        s.schedule.tonnes.iter().sum::<f64>(),
+        match l.trace.len() {
+            0 => String::new(),
+            n => format!(", {n} trace points"),
+        }
     );
     Ok(ExitCode::SUCCESS)
 }
@@ -351,6 +366,7 @@ fn run(a: RunArgs) -> Result<ExitCode> {
     if let Some(out) = &a.out {
         sc.outputs.dir = out.clone();
     }
+    sc.outputs.massflow |= a.massflow_reports;
     if let Some(n) = a.threads {
         rayon::ThreadPoolBuilder::new()
             .num_threads(n)
@@ -397,7 +413,7 @@ fn run(a: RunArgs) -> Result<ExitCode> {
             eprintln!("resuming at period {} of {}", next + 1, scene.periods.len());
             (e, next)
         }
-        _ => (Engine::new(scene, &sc)?, 0),
+        _ => (Engine::new(scene, &sc)?.with_trace(&loaded.trace), 0),
     };
     let bar = progress(scene.periods.len() as u64, "periods");
     bar.set_position(first as u64);
@@ -421,6 +437,11 @@ fn run(a: RunArgs) -> Result<ExitCode> {
     let command = std::env::args().collect::<Vec<_>>().join(" ");
     let charts = if sc.outputs.charts {
         output::figures::write_run_charts(dir, scene, &out, None)?
+    } else {
+        Vec::new()
+    };
+    let massflow = if sc.outputs.massflow {
+        output::massflow::write_reports(dir, scene, &out)?
     } else {
         Vec::new()
     };
@@ -458,7 +479,7 @@ fn run(a: RunArgs) -> Result<ExitCode> {
     );
     println!(
         "wrote {} files and {} charts to {}",
-        files.len(),
+        files.len() + massflow.len(),
         charts.len(),
         dir.display()
     );

@@ -2,9 +2,9 @@
 //! resumes and produces exactly the outputs of an uninterrupted run (issue: no lost work).
 //!
 //! A checkpoint holds everything [`Engine`] changes as it draws: the IMZs, the moving and
-//! drawn markers, the engulfed lattice sites, the mass-balance carries and the output
-//! accumulated so far. What the engine derives from the scene (lattice, marker masses,
-//! waste rule, …) is derived again on resume. The encoding is bincode, so every f64
+//! drawn markers, the engulfed lattice sites, the mass-balance carries, the trace points
+//! and the output accumulated so far. What the engine derives from the scene (lattice,
+//! marker masses, waste rule, …) is derived again on resume. The encoding is bincode, so every f64
 //! (NaN included) comes back bit for bit, and the outputs of a resumed run are
 //! byte-identical to those of an uninterrupted one.
 //!
@@ -16,11 +16,12 @@ use serde::{Deserialize, Serialize};
 
 use super::imz::Imz;
 use super::markers::{DrawnMarkers, Markers};
+use super::trace::Trace;
 use super::{Engine, EngineError, RunOutput};
 use crate::model::{Scenario, Scene};
 
 /// Format version: bump when the state's layout changes.
-const VERSION: u32 = 5;
+const VERSION: u32 = 6;
 
 #[derive(Serialize, Deserialize)]
 struct State {
@@ -36,6 +37,7 @@ struct State {
     steps_done: u64,
     carry: Vec<f64>,
     cum: Vec<f64>,
+    trace: Trace,
     out: RunOutput,
 }
 
@@ -53,6 +55,7 @@ struct StateRef<'e> {
     steps_done: u64,
     carry: &'e [f64],
     cum: &'e [f64],
+    trace: &'e Trace,
     out: &'e RunOutput,
 }
 
@@ -75,6 +78,7 @@ impl<'a> Engine<'a> {
             steps_done: self.steps_done,
             carry: &self.carry,
             cum: &self.cum,
+            trace: &self.trace,
             out: &self.out,
         };
         // Serialising plain data into a Vec cannot fail.
@@ -111,6 +115,7 @@ impl<'a> Engine<'a> {
             || s.next > scene.periods.len()
             || !s.markers.is_consistent()
             || !s.drawn.m.is_consistent()
+            || !s.trace.is_consistent()
         {
             return Err(bad("does not fit this scene".into()));
         }
@@ -122,6 +127,7 @@ impl<'a> Engine<'a> {
         e.steps_done = s.steps_done;
         e.carry = s.carry;
         e.cum = s.cum;
+        e.trace = s.trace;
         e.out = s.out;
         // The marker bins, the streams and the scheduled tonnes so far are derived state.
         e.bins.sync(&e.markers);

@@ -11,6 +11,7 @@
 //! - [`stress`]: the stress logic and interactive-draw flags (summary §5.3), at chosen
 //!   periods when `mechanisms.stress` is on.
 //! - [`stability`]: where the method is valid, degraded (warned) or refused.
+//! - [`trace`]: trace points (MassFlow's trace markers), followed through the draw.
 //!
 //! # One period
 //! Each period's schedule is drawn in steps that interleave the drawpoints (concurrent
@@ -53,6 +54,7 @@ pub mod result;
 pub mod rilling;
 pub mod stability;
 pub mod stress;
+pub mod trace;
 
 use rayon::prelude::*;
 
@@ -158,6 +160,8 @@ pub struct Engine<'a> {
     air_col: Vec<f64>,
     /// Scratch: mass per block for the air gap, t.
     block_mass: Vec<f64>,
+    /// The trace points (`trace`; none unless [`Engine::with_trace`]).
+    trace: trace::Trace,
 }
 
 impl<'a> Engine<'a> {
@@ -266,7 +270,15 @@ impl<'a> Engine<'a> {
             air_col: vec![0.0; bm.dims[0] * bm.dims[1]],
             block_mass: vec![0.0; bm.len()],
             cadence,
+            trace: trace::Trace::default(),
         }
+    }
+
+    /// Follows `points` through the draw ([`trace`]); they must lie inside the block model
+    /// (`model::load` checks it). Call before the first period.
+    pub fn with_trace(mut self, points: &[[f64; 3]]) -> Self {
+        self.trace = trace::Trace::new(points);
+        self
     }
 
     /// Whether markers carry individual sizes (a size mechanism is on).
@@ -484,6 +496,7 @@ impl<'a> Engine<'a> {
         let motion = level_motions(&self.imzs, &is_drawing, &owned);
         let fields = level_fields(&geoms, &motion, &grids, (&self.scene.blocks, period));
         self.steps_done = u;
+        self.trace.step(&fields[0], period);
         let perc = fines::Percolation {
             blocks: bm,
             field: &fields[0],
@@ -962,6 +975,7 @@ impl<'a> Engine<'a> {
             }
         }
         self.record_air_gap(period);
+        self.trace.record(period, &mut self.out.trace);
         let wanted = &self.scenario.outputs.surface_periods;
         if wanted.contains(&period) || (wanted.is_empty() && last) {
             self.record_surface(period);

@@ -339,6 +339,8 @@ pub struct RunOutput {
     pub resolution: ResolvedResolution,
     /// Stress fields at the chosen periods (empty unless `mechanisms.stress` is on).
     pub stress: Vec<super::stress::StressField>,
+    /// Trace points at the end of every period (empty without trace points).
+    pub trace: super::trace::TraceTable,
 }
 
 /// Row statuses of the extraction report.

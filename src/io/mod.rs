@@ -14,6 +14,7 @@ mod problem;
 mod schedule;
 mod table;
 mod text;
+mod trace;
 
 pub use periods::Periods;
 pub(crate) use problem::Collector;
@@ -25,3 +26,5 @@ pub use schedule::{
 };
 pub(crate) use table::read_table_into;
 pub use table::{read_table, read_table_bytes, sha256_hex, Column, ExtraColumn, Table};
+pub(crate) use trace::read_trace_into;
+pub use trace::TracePoints;

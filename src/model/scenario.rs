@@ -50,6 +50,9 @@ pub struct Inputs {
     pub schedule: PathBuf,
     /// Periods table (optional with the wide schedule, whose headers name the periods).
     pub periods: Option<PathBuf>,
+    /// Trace points to follow through the draw (MassFlow's trace-marker file: `x y z`
+    /// rows, no header; `io::TracePoints`). Optional; `--trace` sets it.
+    pub trace: Option<PathBuf>,
 }
 
 /// Resolution knobs. Each has a measured cost and error (`docs::performance`). The defaults are
@@ -222,6 +225,10 @@ pub struct Outputs {
     /// The `scenario=` value of the datasets. Default: the scenario file's stem (`run` when
     /// the tables are given on the command line).
     pub scenario_name: Option<String>,
+    /// Also write MassFlow's report layouts under `<dir>/massflow/` (`output::massflow`):
+    /// the period extraction report, the marker and trace reports and the daily trace CSV.
+    /// The Parquet tables stay the primary output. `--massflow-reports` sets it.
+    pub massflow: bool,
 }
 
 impl Default for Outputs {
@@ -236,6 +243,7 @@ impl Default for Outputs {
             hive: true,
             hive_periods_per_partition: 0,
             scenario_name: None,
+            massflow: false,
         }
     }
 }
@@ -617,6 +625,9 @@ impl Scenario {
             abs(p);
         }
         if let Some(p) = self.inputs.periods.as_mut() {
+            abs(p);
+        }
+        if let Some(p) = self.inputs.trace.as_mut() {
             abs(p);
         }
         abs(&mut self.outputs.dir);

@@ -10,6 +10,8 @@
 //! <dir>/charts/grade_<grade>.png predicted grade of the first grade column against
 //!                                cumulative tonnes, one panel per drawpoint
 //!                                (grade_<grade>-<k>.png when the panels fill several pages)
+//! <dir>/charts/trace.png         the trace points' paths (only with trace points;
+//!                                output::trace::trace_section)
 //! ```
 //!
 //! The pieces are public so that other commands can draw them on their own: [`run_sections`]
@@ -104,6 +106,14 @@ pub fn write_run_charts(
                 &format!("{name} (%)"),
             )?);
         }
+    }
+    if let Some(section) = super::trace::trace_section(scene, &run.trace) {
+        let last = run.trace.period.iter().copied().max().unwrap_or(0);
+        let title =
+            format!("Trace points to the end of period {last} (Easting–elevation projection)");
+        let path = out.join("trace.png");
+        section_chart(&path, &section, &title)?;
+        written.push(path);
     }
     written.extend(super::stress::write_stress_charts(
         &out,

@@ -198,6 +198,7 @@ pub fn write_scene(
     sc.inputs.drawbells = None;
     sc.inputs.schedule = schedule.into();
     sc.inputs.periods = Some("periods.csv".into());
+    sc.inputs.trace = None;
     let path = dir.join("scenario.toml");
     let text = toml::to_string(&sc).map_err(|e| OutputError::Encode {
         path: path.clone(),

@@ -11,6 +11,8 @@
 //! - [`records`]: production records (the demo's synthetic ones).
 //! - `charts`: PNG and SVG charts.
 //! - [`stress`]: the stress logic's tables and charts.
+//! - [`trace`]: the trace points' table.
+//! - [`massflow`]: MassFlow's report layouts (`outputs.massflow`).
 //!
 //! # Why every file is written atomically
 //!
@@ -26,10 +28,12 @@ pub mod dataset;
 pub mod figures;
 pub mod inputs;
 pub mod manifest;
+pub mod massflow;
 pub mod parquet;
 pub mod records;
 pub mod run;
 pub mod stress;
+pub mod trace;
 pub mod warnings;
 
 pub use self::manifest::Manifest;

@@ -9,6 +9,7 @@
 //! <dir>/dataset/<table>/scenario=<name>/period=<N>/part-0.parquet   (outputs.hive; see
 //!                                           output::dataset)
 //! <dir>/stress_levels.parquet, <dir>/stress_sections.parquet   (only with mechanisms.stress)
+//! <dir>/trace.parquet                       (only with trace points; output::trace)
 //! <dir>/manifest.json                       (written last)
 //! ```
 //!
@@ -28,7 +29,8 @@ use super::dataset::{write_dataset, HiveLayout};
 use super::parquet::write_batch;
 use super::{Manifest, OutputError};
 use crate::engine::result::{
-    AirGapTable, DrawnTable, Extraction, ImzTable, MarkerSnapshot, RunOutput, SurfaceTable,
+    AirGapTable, DrawnTable, Extraction, ImzTable, MarkerSnapshot, MarkerState, RunOutput,
+    SurfaceTable,
 };
 use crate::model::Scene;
 use crate::schema::{TableSpec, AIR_GAP, DRAWN, EXTRACTION, IMZ, MARKERS, SURFACE};
@@ -54,6 +56,11 @@ pub(crate) fn i64s(v: Vec<i64>) -> ArrayRef {
     Arc::new(Int64Array::from(v))
 }
 
+/// Marker states as their names (`MarkerState::name`).
+pub(crate) fn states(v: &[MarkerState]) -> ArrayRef {
+    Arc::new(StringArray::from_iter_values(v.iter().map(|s| s.name())))
+}
+
 /// Maps an Arrow error to the output file it was for.
 fn arrow_err(path: &Path) -> impl FnOnce(ArrowError) -> OutputError + '_ {
     move |source| OutputError::Arrow {
@@ -63,7 +70,7 @@ fn arrow_err(path: &Path) -> impl FnOnce(ArrowError) -> OutputError + '_ {
 }
 
 /// Drawpoint names for drawpoint indices; [`u32::MAX`] (not drawn) becomes "".
-fn names(index: &[u32], names: &[String]) -> ArrayRef {
+pub(crate) fn names(index: &[u32], names: &[String]) -> ArrayRef {
     Arc::new(StringArray::from_iter_values(
         index
             .iter()
@@ -207,9 +214,6 @@ pub fn write_markers(dir: &Path, scene: &Scene, t: MarkerSnapshot) -> Result<Pat
     })?;
     let path = part.join("part-0.parquet");
     let rows = t.marker_id.len();
-    let state = Arc::new(StringArray::from_iter_values(
-        t.state.iter().map(|s| s.name()),
-    )) as ArrayRef;
     let fixed = vec![
         ("marker_id", i64s(t.marker_id)),
         ("period", i64s(vec![t.period; rows])),
@@ -221,7 +225,7 @@ pub fn write_markers(dir: &Path, scene: &Scene, t: MarkerSnapshot) -> Result<Pat
         ("origin_z", f64s(t.origin_z)),
         ("mass", f64s(t.mass)),
         ("block_id", i64s(t.block_id)),
-        ("state", state),
+        ("state", states(&t.state)),
         ("porosity", f64s(t.porosity)),
         ("frag_size", f64s(t.frag_size)),
         ("shear_strain", f64s(t.shear_strain)),
@@ -294,6 +298,10 @@ pub fn write_run_with(
 
     if !run.stress.is_empty() {
         written.extend(super::stress::write_stress(dir, run.stress)?);
+    }
+
+    if !run.trace.trace_id.is_empty() {
+        written.push(super::trace::write_trace(dir, scene, run.trace)?);
     }
 
     let path = dir.join("manifest.json");

@@ -5,9 +5,6 @@
 //! thesis' own case, summary §8), its predicted grades multiplied by 1 + ε with ε ~ N(0, σ),
 //! σ = 5%.
 
-use std::path::Path;
-use std::process::Command;
-
 use caveflow::analysis::calibrate::{calibrate, CalibrateConfig, CalibrationReport, Problem};
 use caveflow::analysis::reconcile::{
     drawpoints_frame, predicted_frame, reconcile, records_frame, Frames, Settings,
@@ -20,6 +17,8 @@ use caveflow::model::scenario::Calibration;
 use caveflow::model::{Scenario, Scene};
 use caveflow::output::records::write_records;
 use polars::prelude::*;
+
+use crate::cli::caveflow_in;
 
 /// The hidden truth: Urad fragments are 0.15 m, not the stated 0.23 m.
 const TRUE_FACTOR: f64 = 0.15 / 0.23;
@@ -138,14 +137,6 @@ fn calibrate_recovers_the_hidden_fragment_factor_and_cuts_rmse() {
     );
 }
 
-fn caveflow(args: &[&str], cwd: &Path) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_caveflow"))
-        .args(args)
-        .current_dir(cwd)
-        .output()
-        .unwrap()
-}
-
 /// `caveflow reconcile` on a short demo run writes the metrics table and a report whose
 /// charts are there and drawn, and the page fetches nothing from anywhere.
 #[test]
@@ -153,7 +144,7 @@ fn reconcile_writes_the_table_and_a_self_contained_report() {
     let dir = tempfile::tempdir().unwrap();
     let (scene, sc) = reduced();
     caveflow::output::inputs::write_scene(dir.path(), &scene, &sc).unwrap();
-    let run = caveflow(&["run", "scenario.toml", "--out", "run"], dir.path());
+    let run = caveflow_in(&["run", "scenario.toml", "--out", "run"], dir.path());
     assert!(
         run.status.success(),
         "{}",
@@ -163,7 +154,7 @@ fn reconcile_writes_the_table_and_a_self_contained_report() {
     truth.frag_factor.insert("urad".into(), TRUE_FACTOR);
     let (records, _) = synthetic(&scene, &sc, &truth);
     write_records(&dir.path().join("records.csv"), &records, &scene.drawpoints).unwrap();
-    let out = caveflow(&["reconcile", "run", "records.csv"], dir.path());
+    let out = caveflow_in(&["reconcile", "run", "records.csv"], dir.path());
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(
         out.status.success(),
@@ -274,7 +265,7 @@ fn a_calibration_that_does_not_lower_the_error_is_a_reported_failure() {
     let out = dir.path().join("calib");
     std::fs::create_dir_all(&out).unwrap();
     std::fs::write(out.join("calibrated.toml"), "# an earlier calibration\n").unwrap();
-    let run = caveflow(
+    let run = caveflow_in(
         &[
             "calibrate",
             "scenario.toml",

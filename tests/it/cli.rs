@@ -7,6 +7,11 @@ fn caveflow() -> Command {
     Command::new(env!("CARGO_BIN_EXE_caveflow"))
 }
 
+/// Runs `caveflow args…` in `cwd` to completion.
+pub fn caveflow_in(args: &[&str], cwd: &Path) -> std::process::Output {
+    caveflow().args(args).current_dir(cwd).output().unwrap()
+}
+
 /// The committed schemas/ are exactly what `caveflow schema` prints, so they cannot drift
 /// from the readers and writers.
 #[test]

@@ -24,3 +24,4 @@ mod stress;
 mod surface_cone;
 mod sweep;
 mod synthetic_records;
+mod trace;

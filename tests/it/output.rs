@@ -329,6 +329,7 @@ fn fake_run(scene: &Scene) -> RunOutput {
             max_marker_move: 0.95,
         },
         stress: Vec::new(),
+        trace: Default::default(),
     }
 }
 

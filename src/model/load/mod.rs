@@ -25,12 +25,13 @@
 //! `calibration-range`, reported against the block model file.
 //!
 //! Each table has its own file: `blocks` (the block model and its grid),
-//! `drawpoints` (drawbells, drawpoints and their openings) and `schedule` (periods
-//! and the schedule).
+//! `drawpoints` (drawbells, drawpoints and their openings), `schedule` (periods
+//! and the schedule) and `trace` (the trace points, each inside the block model).
 
 mod blocks;
 mod drawpoints;
 mod schedule;
+mod trace;
 
 pub use blocks::{
     DEFAULT_PERC_K1, DEFAULT_PERC_K2, DEFAULT_PERC_VMR, FRAG_MEAN_TOLERANCE, MAX_COORDINATE,
@@ -52,7 +53,8 @@ use blocks::in_situ_tonnes;
 /// An input file that went into a scene, for the run manifest.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct InputFile {
-    /// What the file is: `blocks`, `drawpoints`, `drawbells`, `periods` or `schedule`.
+    /// What the file is: `blocks`, `drawpoints`, `drawbells`, `periods`, `schedule` or
+    /// `trace`.
     pub role: String,
     /// Path as given in the scenario (absolute once the scenario is loaded from a file).
     pub path: PathBuf,
@@ -84,6 +86,9 @@ pub struct LoadedScene {
     pub inputs: Vec<InputFile>,
     /// Remarks that are not errors (ignored columns, defaulted widths, invented periods).
     pub warnings: Vec<InputWarning>,
+    /// The points to follow through the draw (`inputs.trace`; empty without one), each
+    /// inside the block model.
+    pub trace: Vec<[f64; 3]>,
 }
 
 /// Reads, checks and joins every input of a scenario. See the module docs for the rules;
@@ -99,6 +104,7 @@ pub fn load_scene(sc: &Scenario) -> Result<LoadedScene, Problems> {
         .map(|p| l.read("drawbells", p, &DRAWBELLS));
     let periods = i.periods.as_ref().map(|p| l.read("periods", p, &PERIODS));
     let schedule = l.read_schedule(&i.schedule);
+    let trace = i.trace.as_ref().and_then(|p| l.read_trace(p));
 
     let blocks = blocks.and_then(|t| {
         let before = l.problems.total();
@@ -149,6 +155,9 @@ pub fn load_scene(sc: &Scenario) -> Result<LoadedScene, Problems> {
         (None, Some(s)) => Some(l.periods_from_schedule(s)),
         (None, None) => None,
     };
+    if let (Some(t), Some(b)) = (&trace, &blocks) {
+        l.check_trace(t, b);
+    }
     let model_tonnes = blocks.as_ref().and_then(in_situ_tonnes);
     let schedule = match (&schedule, &drawpoints, &periods) {
         (Some(s), Some(d), Some(p)) => Some(l.schedule(s, d, p, model_tonnes)),
@@ -170,6 +179,7 @@ pub fn load_scene(sc: &Scenario) -> Result<LoadedScene, Problems> {
                 },
                 inputs,
                 warnings,
+                trace: trace.map(|t| t.points).unwrap_or_default(),
             })
         }
         _ => Err(problems.finish()),

@@ -68,6 +68,8 @@ const IMZ_COLOUR: RGBColor = RGBColor(245, 165, 0);
 const IEZ_COLOUR: RGBColor = RGBColor(200, 0, 160);
 /// Free surface (summary Fig. 33).
 const SURFACE_COLOUR: RGBColor = RGBColor(120, 70, 20);
+/// Trace point paths (green).
+const TRACE_COLOUR: RGBColor = RGBColor(0, 150, 70);
 /// Uncaved ground.
 const UNCAVED_FILL: RGBColor = RGBColor(190, 190, 190);
 /// Fill of the model extent on a section.

@@ -19,7 +19,7 @@ use super::{
     widest_tick_label, write_chart, x_ticks, y_ticks, AxisLabels, ChartError, DrawError, Frame,
     IntoChartError, Legend, LegendEntry, Pen, Render, Sample, AXIS_TITLE_W, FRAME_COLOUR,
     IEZ_COLOUR, IMZ_COLOUR, LAYER_COLOURS, MAX_SIDE, MIN_W, MODEL_FILL, SURFACE_COLOUR, TICK_GAP,
-    TITLE_H, UNCAVED_FILL,
+    TITLE_H, TRACE_COLOUR, UNCAVED_FILL,
 };
 
 /// Layout failures: bad input, or a font measurement that failed.
@@ -92,6 +92,9 @@ pub struct Section {
     pub surface: Vec<(f64, f64)>,
     /// Uncaved ground on the section at the end of the run: rectangles ((x0, z0), (x1, z1)).
     pub uncaved: Vec<((f64, f64), (f64, f64))>,
+    /// Paths of trace points (`engine::trace`), one polyline per point from its given
+    /// position through its position at each period end; drawn with a dot at the start.
+    pub traces: Vec<Vec<(f64, f64)>>,
 }
 
 /// Closed outline of an IMZ on a vertical section through its axis.
@@ -216,7 +219,8 @@ impl<'a> SectionPlot<'a> {
             .layers
             .iter()
             .chain(&section.imz)
-            .chain(&section.iez);
+            .chain(&section.iez)
+            .chain(&section.traces);
         let points = polylines
             .flatten()
             .copied()
@@ -347,6 +351,12 @@ fn section_legend(section: &Section) -> Vec<LegendEntry> {
             label: "Uncaved ground",
         });
     }
+    if !section.traces.is_empty() {
+        entries.push(LegendEntry {
+            sample: Sample::Line(TRACE_COLOUR, 2),
+            label: "Trace point paths (dot: given position)",
+        });
+    }
     if !section.drawpoints.is_empty() {
         entries.push(LegendEntry {
             sample: Sample::Triangle(BLACK),
@@ -421,6 +431,17 @@ impl Render for SectionPlot<'_> {
                 f.path(&run),
                 SURFACE_COLOUR.stroke_width(3),
             ))?;
+        }
+        for path in &s.traces {
+            for run in finite_runs(path) {
+                root.draw(&PathElement::new(
+                    f.path(&run),
+                    TRACE_COLOUR.stroke_width(2),
+                ))?;
+            }
+            if let Some(&start) = path.first().filter(|p| p.0.is_finite() && p.1.is_finite()) {
+                root.draw(&Circle::new(f.px(start), 4, TRACE_COLOUR.filled()))?;
+            }
         }
         let label_style = dp_label_style();
         for ((x, z, label), &row) in s.drawpoints.iter().zip(&self.label_rows) {
@@ -535,6 +556,7 @@ mod tests {
             ],
             surface: vec![(0.0, 3.3), (1.0, 3.3), (1.2, 3.0), (1.4, 3.3), (2.4, 3.3)],
             uncaved: vec![((1.8, 2.8), (2.4, 3.3))],
+            traces: Vec::new(),
         }
     }
 
