@@ -34,7 +34,7 @@ use polars::prelude::*;
 use crate::engine::result::Extraction;
 use crate::model::records::ProductionRecords;
 use crate::model::{Drawpoints, Scene};
-use crate::output::run::{f64s_or_null, i64s, strs, write_table};
+use crate::output::columns::{f64s_or_null, i64s, strs, write_table};
 use crate::output::OutputError;
 use crate::schema::{RECONCILE_METRICS, RECONCILE_ROWS};
 

@@ -46,7 +46,7 @@ use crate::engine::result::{ResolvedResolution, RunOutput};
 use crate::engine::{resolution, Engine, EngineError, RunPlan};
 use crate::model::{Scenario, Scene};
 use crate::output::charts::{sweep_chart, ChartError, SweepPoint};
-use crate::output::run::{f64s, i64s, write_table};
+use crate::output::columns::{f64s, i64s, write_table};
 use crate::output::OutputError;
 use crate::schema::SWEEP;
 

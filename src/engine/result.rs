@@ -275,6 +275,37 @@ pub struct CorrectionStats {
     pub halves_median: [f64; 2],
 }
 
+/// Trace rows (`engine::trace`): one per trace point per period, at the period's end.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct TraceTable {
+    /// Trace id: the point's place in the trace file (1, 2, …).
+    pub trace_id: Vec<i64>,
+    /// Period number.
+    pub period: Vec<i64>,
+    /// Position at the period's end, m.
+    pub x: Vec<f64>,
+    /// Position at the period's end, m.
+    pub y: Vec<f64>,
+    /// Position at the period's end, m.
+    pub z: Vec<f64>,
+    /// Given position, m.
+    pub origin_x: Vec<f64>,
+    /// Given position, m.
+    pub origin_y: Vec<f64>,
+    /// Given position, m.
+    pub origin_z: Vec<f64>,
+    /// State at the period's end.
+    pub state: Vec<MarkerState>,
+    /// Drawpoint index that drew it (u32::MAX if not drawn).
+    pub drawpoint: Vec<u32>,
+    /// Period in which it was drawn (-1 if not drawn).
+    pub drawn_period: Vec<i64>,
+    /// Accumulated shear strain Γ.
+    pub shear_strain: Vec<f64>,
+    /// Accumulated shear work Γσ_n, kPa.
+    pub shear_work: Vec<f64>,
+}
+
 /// Resolution actually used.
 #[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct ResolvedResolution {
@@ -340,7 +371,7 @@ pub struct RunOutput {
     /// Stress fields at the chosen periods (empty unless `mechanisms.stress` is on).
     pub stress: Vec<super::stress::StressField>,
     /// Trace points at the end of every period (empty without trace points).
-    pub trace: super::trace::TraceTable,
+    pub trace: TraceTable,
 }
 
 /// Row statuses of the extraction report.

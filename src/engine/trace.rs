@@ -26,7 +26,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::markers::MotionField;
-use super::result::MarkerState;
+use super::result::{MarkerState, TraceTable};
 
 /// The trace points' state between steps, struct of arrays; row k is trace id k + 1.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
@@ -45,37 +45,6 @@ pub struct Trace {
     pub strain: Vec<f64>,
     /// Accumulated shear work Γσ_n, kPa.
     pub work: Vec<f64>,
-}
-
-/// Trace rows: one per trace point per period, at the period's end.
-#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
-pub struct TraceTable {
-    /// Trace id: the point's place in the trace file (1, 2, …).
-    pub trace_id: Vec<i64>,
-    /// Period number.
-    pub period: Vec<i64>,
-    /// Position at the period's end, m.
-    pub x: Vec<f64>,
-    /// Position at the period's end, m.
-    pub y: Vec<f64>,
-    /// Position at the period's end, m.
-    pub z: Vec<f64>,
-    /// Given position, m.
-    pub origin_x: Vec<f64>,
-    /// Given position, m.
-    pub origin_y: Vec<f64>,
-    /// Given position, m.
-    pub origin_z: Vec<f64>,
-    /// State at the period's end.
-    pub state: Vec<MarkerState>,
-    /// Drawpoint index that drew it (u32::MAX if not drawn).
-    pub drawpoint: Vec<u32>,
-    /// Period in which it was drawn (-1 if not drawn).
-    pub drawn_period: Vec<i64>,
-    /// Accumulated shear strain Γ.
-    pub shear_strain: Vec<f64>,
-    /// Accumulated shear work Γσ_n, kPa.
-    pub shear_work: Vec<f64>,
 }
 
 impl Trace {

@@ -11,6 +11,7 @@
 mod parquet;
 mod periods;
 mod problem;
+mod read;
 mod schedule;
 mod table;
 mod text;
@@ -19,12 +20,13 @@ mod trace;
 pub use periods::Periods;
 pub(crate) use problem::Collector;
 pub use problem::{InputWarning, Problem, Problems, KEEP_PER_RULE};
+pub(crate) use read::read_table_into;
+pub use read::{read_table, read_table_bytes};
 pub(crate) use schedule::read_schedule_into;
 pub use schedule::{
     parse_period_header, read_schedule, read_schedule_bytes, ScheduleEntry, ScheduleForm,
     ScheduleTable,
 };
-pub(crate) use table::read_table_into;
-pub use table::{read_table, read_table_bytes, sha256_hex, Column, ExtraColumn, Table};
+pub use table::{sha256_hex, Column, ExtraColumn, Table};
 pub(crate) use trace::read_trace_into;
 pub use trace::TracePoints;

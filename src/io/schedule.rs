@@ -24,9 +24,9 @@
 use std::path::Path;
 
 use super::problem::{Collector, InputWarning, Problem, Problems};
+use super::read::{read_bytes, read_table_into, read_text};
 use super::table::{
-    file_name, is_parquet, names_field, not_a_number, parse_f64, read_bytes, read_table_into,
-    read_text, sha256_hex, Cell, Table,
+    file_name, is_parquet, names_field, not_a_number, parse_f64, sha256_hex, Cell, Table,
 };
 use super::text::Text;
 use super::Periods;

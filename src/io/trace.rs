@@ -17,7 +17,8 @@
 use std::path::Path;
 
 use super::problem::{Collector, Problem};
-use super::table::{file_name, not_a_number, read_bytes, sha256_hex};
+use super::read::read_bytes;
+use super::table::{file_name, not_a_number, sha256_hex};
 
 /// The coordinates' names, as messages call the columns.
 const AXES: [&str; 3] = ["x", "y", "z"];

@@ -1,5 +1,11 @@
 //! The regular block grid with O(1) point lookup.
 
+/// Largest plausible mean fragment size, m. Caved fragmentation runs from centimetres to
+/// about 2 m (Henderson: 0.04–0.23 m; coarse primary caving d50 of 1–2 m); a mean above
+/// 10 m is almost always millimetres (`units-mm`, in the block model and the production
+/// records alike).
+pub const MAX_FRAG_SIZE: f64 = 10.0;
+
 /// Sentinel for "no block here" in [`BlockModel::index`].
 pub const NO_BLOCK: u32 = u32::MAX;
 

@@ -44,7 +44,7 @@ use std::collections::HashMap;
 use std::path::Path;
 
 use crate::io::{read_table_into, Collector, Problem, Problems, Table};
-use crate::model::load::MAX_FRAG_SIZE;
+use crate::model::block_model::MAX_FRAG_SIZE;
 use crate::model::{Drawpoints, Periods};
 use crate::schema::PRODUCTION;
 

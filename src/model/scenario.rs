@@ -354,19 +354,12 @@ impl Calibration {
     }
 
     /// Range checks that need no block model: every factor finite and positive.
-    pub fn check(&self) -> Result<(), String> {
-        let pos = |name: String, x: f64| {
-            if x.is_finite() && x > 0.0 {
-                Ok(())
-            } else {
-                Err(format!("{name} must be a positive number, got {x}"))
-            }
-        };
+    pub fn check(&self) -> Result<(), SettingError> {
         for (lith, &f) in &self.frag_factor {
-            pos(format!("calibration.frag_factor.{lith}"), f)?;
+            SettingError::positive(&format!("calibration.frag_factor.{lith}"), Some(f))?;
         }
-        pos("calibration.n1_factor".into(), self.n1_factor)?;
-        pos("calibration.friction_factor".into(), self.friction_factor)
+        SettingError::positive("calibration.n1_factor", Some(self.n1_factor))?;
+        SettingError::positive("calibration.friction_factor", Some(self.friction_factor))
     }
 
     /// Applies the factors to a checked block model, in place:
@@ -389,10 +382,10 @@ impl Calibration {
     /// [`apply`](Self::apply), with where its error lies: the block row and the block
     /// model column (canonical name) it concerns, for the loader's problem report.
     pub fn apply_located(&self, bm: &mut super::BlockModel) -> Result<(), CalibrationError> {
-        let whole = |message: String| CalibrationError {
+        let whole = |e: SettingError| CalibrationError {
             block: None,
             column: None,
-            message,
+            message: e.to_string(),
         };
         self.check().map_err(whole)?;
         let mut lith_factor = vec![1.0; bm.lithology_names.len()];
@@ -489,6 +482,37 @@ pub struct CalibrationError {
     pub column: Option<&'static str>,
     /// What is wrong.
     pub message: String,
+}
+
+/// A setting outside its range (rule `setting-range`): the key, and what it must be.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{key} {must}")]
+pub struct SettingError {
+    /// The scenario key, e.g. `resolution.marker_spacing`.
+    pub key: String,
+    /// What the value must be, and what it is.
+    pub must: String,
+}
+
+impl SettingError {
+    /// A setting `key` that `must` be otherwise.
+    pub fn new(key: &str, must: String) -> SettingError {
+        SettingError {
+            key: key.into(),
+            must,
+        }
+    }
+
+    /// Ok unless `value` is set and is not a positive number.
+    pub fn positive(key: &str, value: Option<f64>) -> Result<(), SettingError> {
+        match value {
+            Some(x) if !(x.is_finite() && x > 0.0) => Err(SettingError::new(
+                key,
+                format!("must be a positive number, got {x}"),
+            )),
+            _ => Ok(()),
+        }
+    }
 }
 
 /// A problem with the scenario file or a `--set`. Displayed like an input
@@ -603,7 +627,7 @@ impl Scenario {
             .map_err(|e| ScenarioError::toml("--set", "", &e, false))?;
         sc.resolve_paths(base);
         sc.check()
-            .map_err(|message| ScenarioError::at(origin, "setting-range", message))?;
+            .map_err(|e| ScenarioError::at(origin, "setting-range", e.to_string()))?;
         Ok(sc)
     }
 
@@ -633,31 +657,23 @@ impl Scenario {
         abs(&mut self.outputs.dir);
     }
 
-    /// Range checks on the settings themselves.
-    pub fn check(&self) -> Result<(), String> {
-        let pos = |name: &str, v: Option<f64>| match v {
-            Some(x) if !(x.is_finite() && x > 0.0) => {
-                Err(format!("{name} must be a positive number, got {x}"))
-            }
-            _ => Ok(()),
-        };
-        pos(
-            "resolution.layer_thickness",
-            self.resolution.layer_thickness,
-        )?;
-        pos("resolution.marker_spacing", self.resolution.marker_spacing)?;
-        pos("resolution.draw_increment", self.resolution.draw_increment)?;
-        if let Some(x) = self.resolution.max_marker_move {
+    /// Range checks on the settings themselves: the first setting out of its range.
+    pub fn check(&self) -> Result<(), SettingError> {
+        let pos = SettingError::positive;
+        let bad = |key: &str, must: String| Err(SettingError::new(key, must));
+        let res = &self.resolution;
+        pos("resolution.layer_thickness", res.layer_thickness)?;
+        pos("resolution.marker_spacing", res.marker_spacing)?;
+        pos("resolution.draw_increment", res.draw_increment)?;
+        if let Some(x) = res.max_marker_move {
             if !(x.is_finite() && x >= 0.0) {
-                return Err(format!(
-                    "resolution.max_marker_move must be a number ≥ 0 (0: every marker steps every update), got {x}"
-                ));
+                return bad(
+                    "resolution.max_marker_move",
+                    format!("must be a number ≥ 0 (0: every marker steps every update), got {x}"),
+                );
             }
         }
-        pos(
-            "resolution.target_grade_rmse",
-            self.resolution.target_grade_rmse,
-        )?;
+        pos("resolution.target_grade_rmse", res.target_grade_rmse)?;
         pos("flow.q", Some(self.flow.q))?;
         pos("flow.shear_band_factor", Some(self.flow.shear_band_factor))?;
         pos(
@@ -666,18 +682,19 @@ impl Scenario {
         )?;
         pos("flow.min_porosity_jump", Some(self.flow.min_porosity_jump))?;
         pos("outputs.fines_cutoff", Some(self.outputs.fines_cutoff))?;
-        if !(self.rilling.air_fill > 0.0 && self.rilling.air_fill < 1.0) {
-            return Err(format!(
-                "rilling.air_fill must lie strictly between 0 and 1, got {}",
-                self.rilling.air_fill
-            ));
+        let fill = self.rilling.air_fill;
+        if !(fill > 0.0 && fill < 1.0) {
+            return bad(
+                "rilling.air_fill",
+                format!("must lie strictly between 0 and 1, got {fill}"),
+            );
         }
         let f = &self.fragmentation;
         if !(f.k_n.is_finite() && f.k_n >= 0.0) {
-            return Err(format!(
-                "fragmentation.k_n must be a number >= 0, got {}",
-                f.k_n
-            ));
+            return bad(
+                "fragmentation.k_n",
+                format!("must be a number >= 0, got {}", f.k_n),
+            );
         }
         pos("fragmentation.beta", Some(f.beta))?;
         pos("fragmentation.phi", Some(f.phi))?;
@@ -686,24 +703,27 @@ impl Scenario {
         if let Some(n) = &self.outputs.scenario_name {
             let ok = |c: char| c.is_ascii_alphanumeric() || matches!(c, '.' | '_' | '-');
             if n.is_empty() || !n.chars().all(ok) || n.starts_with('.') {
-                return Err(format!(
-                    "outputs.scenario_name `{n}` must be letters, digits, `.`, `_` and `-` (not starting with `.`): it names a directory"
-                ));
+                return bad(
+                    "outputs.scenario_name",
+                    format!("`{n}` must be letters, digits, `.`, `_` and `-` (not starting with `.`): it names a directory"),
+                );
             }
         }
         pos("stress.cell", self.stress.cell)?;
         pos("stress.bin_k", Some(self.stress.bin_k))?;
-        if !(self.stress.cohesion_kpa.is_finite() && self.stress.cohesion_kpa >= 0.0) {
-            return Err(format!(
-                "stress.cohesion_kpa must be a number >= 0, got {}",
-                self.stress.cohesion_kpa
-            ));
+        let c = self.stress.cohesion_kpa;
+        if !(c.is_finite() && c >= 0.0) {
+            return bad(
+                "stress.cohesion_kpa",
+                format!("must be a number >= 0, got {c}"),
+            );
         }
         if let Some(w) = self.stress.wall_friction_deg {
             if !(w > 0.0 && w < 90.0) {
-                return Err(format!(
-                    "stress.wall_friction_deg must be in (0, 90), got {w}"
-                ));
+                return bad(
+                    "stress.wall_friction_deg",
+                    format!("must be in (0, 90), got {w}"),
+                );
             }
         }
         Ok(())
@@ -740,4 +760,32 @@ fn apply_set(root: &mut toml::Table, set: &str) -> Result<(), ScenarioError> {
     }
     table.insert(parts[parts.len() - 1].to_string(), value);
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A setting out of range is reported under its key, with what it must be; nested
+    /// checks (the calibration's) name their own keys.
+    #[test]
+    fn a_setting_out_of_range_names_its_key() {
+        let mut sc = Scenario::default();
+        sc.resolution.marker_spacing = Some(-1.0);
+        let e = sc.check().unwrap_err();
+        assert_eq!(e.key, "resolution.marker_spacing");
+        assert_eq!(
+            e.to_string(),
+            "resolution.marker_spacing must be a positive number, got -1"
+        );
+        let mut sc = Scenario::default();
+        sc.calibration.frag_factor.insert("urad".into(), 0.0);
+        assert_eq!(sc.check().unwrap_err().key, "calibration.frag_factor.urad");
+        let mut sc = Scenario::default();
+        sc.rilling.air_fill = 1.0;
+        let e = sc.check().unwrap_err();
+        assert_eq!(e.key, "rilling.air_fill");
+        assert!(e.must.contains("strictly between 0 and 1"), "{e}");
+        assert_eq!(Scenario::default().check(), Ok(()));
+    }
 }

@@ -31,7 +31,8 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
 use super::charts::{
-    grade_tonnage_chart, iez_outline, imz_outline, section_chart, ChartError, GradeSeries, Section,
+    fmt_mass, grade_tonnage_chart, iez_outline, imz_outline, section_chart, ChartError,
+    GradeSeries, Section,
 };
 use crate::engine::result::{MarkerSnapshot, MarkerState, RunOutput};
 use crate::model::block_model::NO_BLOCK;
@@ -626,31 +627,6 @@ pub fn block_grade(bm: &BlockModel, g: usize, x: f64, y: f64, z_lo: f64, z_hi: f
         sum / mass
     } else {
         f64::NAN
-    }
-}
-
-/// A mass for a drawpoint label: kg below 1 t (`"20.0 kg"`, `"412 kg"`), t below 10 kt
-/// (`"1.23 t"`, `"412 t"`, `"4120 t"`), kt above (`"12.3 kt"`).
-pub fn fmt_mass(tonnes: f64) -> String {
-    if !tonnes.is_finite() {
-        return "–".into();
-    }
-    let t = tonnes.max(0.0);
-    if t < 1.0 {
-        let kg = t * 1000.0;
-        if kg < 100.0 {
-            format!("{kg:.1} kg")
-        } else {
-            format!("{kg:.0} kg")
-        }
-    } else if t < 10.0 {
-        format!("{t:.2} t")
-    } else if t < 100.0 {
-        format!("{t:.1} t")
-    } else if t < 10_000.0 {
-        format!("{t:.0} t")
-    } else {
-        format!("{:.1} kt", t / 1000.0)
     }
 }
 

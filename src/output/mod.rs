@@ -24,6 +24,7 @@
 use std::path::PathBuf;
 
 pub mod charts;
+pub mod columns;
 pub mod dataset;
 pub mod figures;
 pub mod inputs;

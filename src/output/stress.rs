@@ -14,9 +14,8 @@ use std::sync::Arc;
 use arrow::array::{ArrayRef, StringArray};
 
 use super::charts::stress::{stress_chart, StressChart};
-use super::charts::{imz_outline, ChartError};
-use super::figures::fmt_mass;
-use super::run::{f64s, f64s_or_null, i64s, write_table};
+use super::charts::{fmt_mass, imz_outline, ChartError};
+use super::columns::{f64s, f64s_or_null, i64s, write_table};
 use super::OutputError;
 use crate::engine::stress::{Orientation, StressField};
 use crate::model::Scene;

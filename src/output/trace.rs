@@ -9,9 +9,9 @@ use std::sync::Arc;
 use arrow::array::{ArrayRef, StringArray};
 
 use super::charts::Section;
-use super::run::{f64s, i64s, names, states, write_table};
+use super::columns::{f64s, i64s, names, states, write_table};
 use super::OutputError;
-use crate::engine::trace::TraceTable;
+use crate::engine::result::TraceTable;
 use crate::model::{Periods, Scene};
 use crate::schema::TRACE;
 

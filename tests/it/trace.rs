@@ -8,7 +8,7 @@ use std::fs;
 
 use arrow::array::{AsArray, RecordBatch};
 use arrow::datatypes::{Float64Type, Int64Type};
-use caveflow::engine::trace::TraceTable;
+use caveflow::engine::result::TraceTable;
 use caveflow::engine::{Engine, MarkerState, RunOutput};
 use caveflow::model::load::load_scene;
 use caveflow::model::synthetic::UniformBox;

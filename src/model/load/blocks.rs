@@ -25,6 +25,7 @@ use std::collections::HashMap;
 
 use super::Loader;
 use crate::io::{InputWarning, Table};
+use crate::model::block_model::MAX_FRAG_SIZE;
 use crate::model::BlockModel;
 
 /// Default percolation coefficient k1 (summary §7.3).
@@ -49,10 +50,6 @@ pub const MAX_GRID_CELLS: usize = 1 << 28;
 /// rounded up. No caved rock has a friction angle under 1.6°, and every angle in radians
 /// that a rock can have (20°–60° is 0.35–1.05 rad) lies below it.
 pub const RADIANS_BELOW: f64 = 1.6;
-/// Largest plausible mean fragment size, m. Caved fragmentation runs from centimetres to
-/// about 2 m (Henderson: 0.04–0.23 m; coarse primary caving d50 of 1–2 m); a mean above
-/// 10 m is almost always millimetres (`units-mm`).
-pub const MAX_FRAG_SIZE: f64 = 10.0;
 
 /// Largest block-centre coordinate accepted, m. Mine grids (UTM northings included) stay
 /// below 10⁷ m, and the Earth's circumference is 4 × 10⁷ m. Beyond 10⁹ m the block-size

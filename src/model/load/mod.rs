@@ -33,9 +33,10 @@ mod drawpoints;
 mod schedule;
 mod trace;
 
+pub use super::block_model::MAX_FRAG_SIZE;
 pub use blocks::{
     DEFAULT_PERC_K1, DEFAULT_PERC_K2, DEFAULT_PERC_VMR, FRAG_MEAN_TOLERANCE, MAX_COORDINATE,
-    MAX_FRAG_SIZE, MAX_GRID_CELLS, RADIANS_BELOW, TENSILE_UCS_RATIO,
+    MAX_GRID_CELLS, RADIANS_BELOW, TENSILE_UCS_RATIO,
 };
 pub use drawpoints::MAX_OPENING_WIDTH;
 

@@ -38,6 +38,7 @@ pub mod stress;
 mod sweep;
 
 pub use self::grade::{grade_tonnage_chart, GradeSeries, MAX_PANELS};
+pub use self::legend::fmt_mass;
 pub use self::reconcile::{
     diverging, error_map_chart, profile_chart, scatter_chart, MapPoint, Profile, ScatterPoint,
 };

@@ -15,8 +15,8 @@
 use std::collections::HashMap;
 
 use super::{days_to_end, line, num};
+use crate::engine::result::TraceTable;
 use crate::engine::result::{MarkerSnapshot, MarkerState};
-use crate::engine::trace::TraceTable;
 use crate::model::Scene;
 
 /// One marker as the report prints it.

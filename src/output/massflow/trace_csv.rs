@@ -5,7 +5,7 @@
 //! place in the trace file): a trace point is a marker of its own.
 
 use super::{days_to_end, line, num};
-use crate::engine::trace::TraceTable;
+use crate::engine::result::TraceTable;
 use crate::model::Scene;
 
 /// The file's text.
