@@ -353,6 +353,7 @@ mod tests {
             grid: &grid0,
         };
         imz.finish_interval(&ground, &p);
+        crate::engine::markers::prepare(&mut imz.motion, imz.geom.h);
         let m = imz.motion[0];
         // σ_n = 1.43 × 9.81 × 10 / (2 tan 40°) = 140.283 / 1.678199 = 83.5914 kPa.
         assert!((m.sigma_n - 83.5914).abs() < 1e-3, "{}", m.sigma_n);

@@ -596,6 +596,22 @@ pub struct DiskMotion {
     pub d: f64,
     /// The ring's dilation around the perimeter ([`Stagnant::shape`]).
     pub shape: [f64; 2 * SHAPE_MODES],
+    /// The marker pass's constants of this disk, the same for every marker it moves
+    /// (`engine::markers::prepare`; zero until then).
+    pub per_disk: PerDisk,
+}
+
+/// A disk's constants of the marker pass, worked out once per disk and update
+/// (`engine::markers::prepare`) instead of once per marker in it.
+#[derive(Debug, Clone, Copy, Default, serde::Serialize, serde::Deserialize)]
+pub struct PerDisk {
+    /// Plan area the dilating ring takes from the interior, (Δv_i − Δv_out) / (h f), m².
+    pub take: f64,
+    /// The ring's inward push at R^old, take F(R^old) / (2π R^old), m (0 where the disk
+    /// did not widen).
+    pub push: f64,
+    /// Whether the ring's dilation differs around the perimeter (a lateral move).
+    pub lateral: bool,
 }
 
 /// One drawpoint's IMZ.

@@ -73,7 +73,7 @@
 use rayon::prelude::*;
 
 use super::cadence::Cadence;
-use super::imz::{DiskMotion, ImzGeom, ImzGrid};
+use super::imz::{DiskMotion, ImzGeom, ImzGrid, PerDisk};
 use crate::model::BlockModel;
 
 /// The marker lattice over the block grid.
@@ -612,14 +612,16 @@ pub fn radial(r_old: f64, r_new: f64, r: f64, w: f64, take: f64, a: f64) -> f64 
 /// material without changing its volume, so the interior stays at n1, and the material the
 /// stagnant side of the ring gives up goes to the side that must not dilate. Beyond R_old
 /// it falls linearly to zero at the new radius, like the radial push.
+///
+/// `m.per_disk` must be prepared ([`prepare`]).
 #[inline]
-pub fn lateral(m: &DiskMotion, take: f64, ex: f64, ey: f64, a: f64) -> (f64, f64) {
+pub fn lateral(m: &DiskMotion, ex: f64, ey: f64, a: f64) -> (f64, f64) {
     let (r_old, r) = (m.r_old, m.r);
-    if !(r > r_old && r_old > 0.0 && take > 0.0) || a > r || m.shape.iter().all(|&c| c == 0.0) {
+    if !m.per_disk.lateral || a > r {
         return (0.0, 0.0);
     }
     // u_a(R_old, θ) = s Σ α_k cos kθ + β_k sin kθ: the uniform push at R_old times w − 1.
-    let s = -take * flux_inside(r, m.w, r_old) / (2.0 * std::f64::consts::PI * r_old);
+    let s = -m.per_disk.push;
     let (scale, tx, ty) = if a <= r_old {
         (s, ex / r_old, ey / r_old)
     } else {
@@ -641,6 +643,28 @@ pub fn lateral(m: &DiskMotion, take: f64, ex: f64, ey: f64, a: f64) -> (f64, f64
         (ux * k, uy * k)
     } else {
         (ux, uy)
+    }
+}
+
+/// Fills each disk's constants of the marker pass ([`PerDisk`]) from its motion, for IMZ
+/// disks of thickness `h`: the same for every marker the disk moves, so the pass reads
+/// them instead of working them out per marker (with the same arithmetic: the moves are
+/// bit for bit those of the formulas in [`radial`] and [`lateral`]).
+pub fn prepare(motion: &mut [DiskMotion], h: f64) {
+    for m in motion {
+        let take = (m.dv - m.dv_out) / (h * m.flow_frac);
+        let widened = m.r > m.r_old && m.r_old > 0.0 && take > 0.0;
+        let push = if widened {
+            take * flux_inside(m.r, m.w, m.r_old) / (2.0 * std::f64::consts::PI * m.r_old)
+        } else {
+            0.0
+        };
+        let lateral = widened && m.shape.iter().any(|&c| c != 0.0);
+        m.per_disk = PerDisk {
+            take,
+            push,
+            lateral,
+        };
     }
 }
 
@@ -707,8 +731,7 @@ impl MotionField<'_> {
                 } else {
                     (0.0, 0.0)
                 };
-                let take = (m.dv - m.dv_out) / (g.h * m.flow_frac);
-                let mut da = radial(m.r_old, m.r, m.r, m.w, take, a);
+                let mut da = radial(m.r_old, m.r, m.r, m.w, m.per_disk.take, a);
                 // The inward move is the dilating ring pushing in along the marker's ray. In a
                 // disk cut by a wall or uncaved ground (A_f < 1) there is no ring on a ray that
                 // leaves the flowable ground before the new radius, so nothing pushes there
@@ -722,7 +745,7 @@ impl MotionField<'_> {
                         }
                     }
                 }
-                let (lx, ly) = lateral(m, take, ex, ey, a);
+                let (lx, ly) = lateral(m, ex, ey, a);
                 st.dx += sx * (da * ux + lx);
                 st.dy += sy * (da * uy + ly);
                 st.dz += dz;
@@ -1413,9 +1436,13 @@ mod tests {
                     shape,
                     ..Default::default()
                 })
-                .collect()
+                .collect::<Vec<_>>()
         };
-        let (whole, half) = (disks(1.0), disks(0.5));
+        let prepared = |mut m: Vec<DiskMotion>| {
+            prepare(&mut m, geom.h);
+            m
+        };
+        let (whole, half) = (prepared(disks(1.0)), prepared(disks(0.5)));
         let one_geom = vec![geom.clone()];
         let two_geoms = vec![geom.clone(), geom.clone()];
         let one_grid = ImzGrid::build(&one_geom, &[0], [-5.0, -5.0], [10.0, 10.0], 1.0);
@@ -1532,7 +1559,7 @@ mod tests {
         let scene = crate::model::synthetic::UniformBox::castro_isolated().scene();
         let bm = &scene.blocks;
         let [wx, wy, _] = bm.origin;
-        let motion: Vec<DiskMotion> = (0..4)
+        let mut motion: Vec<DiskMotion> = (0..4)
             .map(|_| DiskMotion {
                 r: 0.3,
                 r_old: 0.28,
@@ -1544,6 +1571,7 @@ mod tests {
                 ..Default::default()
             })
             .collect();
+        prepare(&mut motion, 0.1);
         // A disk cut by the wall x = wx, then one in the corner of x = wx and y = wy.
         for (x, y) in [(wx + 0.1, 0.0), (wx + 0.1, wy + 0.1)] {
             let geom = ImzGeom {

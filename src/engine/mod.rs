@@ -456,6 +456,7 @@ impl<'a> Engine<'a> {
                 imz.begin_interval();
                 imz.draw(row[imz.id] / steps as f64, &ground, &params);
                 imz.finish_interval(&ground, &params);
+                markers::prepare(&mut imz.motion, imz.geom.h);
                 imz.drew_at = u;
                 if cadence.max_level > 0 {
                     let dv = imz.motion.iter().map(|m| (m.dv, m.dv_out));
@@ -565,7 +566,11 @@ impl<'a> Engine<'a> {
                 if l > 0 {
                     let got: Vec<Vec<DiskMotion>> = a
                         .par_iter()
-                        .map(|&d| self.imzs[d].window_motion(l))
+                        .map(|&d| {
+                            let mut w = self.imzs[d].window_motion(l);
+                            markers::prepare(&mut w, self.imzs[d].geom.h);
+                            w
+                        })
                         .collect();
                     a.iter().zip(got).for_each(|(&d, w)| v[d] = w);
                 }
