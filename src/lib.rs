@@ -7,8 +7,9 @@
 //! drawpoints, schedule, scenario) → [`engine`] (IMZs, markers: one module per mechanism) →
 //! [`output`] (Parquet writers, manifest, charts) → `analysis` (reconcile, calibrate) →
 //! [`cli`]. No module reaches back up (the integration test `layering` reads every `crate::`
-//! path in `src/` and fails on one). [`docs`] holds the notes on the method, its
-//! validation and its performance.
+//! path in `src/` and fails on one, and on a circle among a layer's modules). [`docs`]
+//! holds the notes on the method, its validation and its performance, and
+//! [`docs::references`] says what the "summary §" and "DESIGN §" of the doc comments are.
 #![warn(missing_docs)]
 // `!(x > 0.0)` is how this crate says "not a positive number, NaN included": a NaN input
 // takes the same branch as a non-positive one. `partial_cmp` would say the same at more

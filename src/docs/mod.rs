@@ -11,3 +11,6 @@ pub mod validation {}
 
 #[doc = include_str!("performance.md")]
 pub mod performance {}
+
+#[doc = include_str!("references.md")]
+pub mod references {}
