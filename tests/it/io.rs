@@ -7,75 +7,30 @@ use std::fs;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use arrow::array::{
-    ArrayRef, Float32Array, Float64Array, Int32Array, Int64Array, RecordBatch, StringArray,
-};
-use arrow::datatypes::{Field, Schema};
+use arrow::array::{ArrayRef, Float32Array, Float64Array, Int32Array, Int64Array, StringArray};
 use caveflow::io::{
-    parse_period_header, read_schedule, read_table, Problem, Problems, ScheduleForm, KEEP_PER_RULE,
+    parse_period_header, read_schedule, read_table, Problems, ScheduleForm, KEEP_PER_RULE,
 };
 use caveflow::model::load::{load_scene, LoadedScene};
 use caveflow::model::Scenario;
 use caveflow::schema::{BLOCK_MODEL, DRAWBELLS, DRAWPOINTS, PERIODS, SCHEDULE};
-use parquet::arrow::ArrowWriter;
 use sha2::{Digest, Sha256};
 use tempfile::TempDir;
 
+use crate::fixtures::{
+    expect, repo, write_parquet, BLOCKS, DRAWPOINTS_CSV, PERIODS_CSV, SCHEDULE_CSV,
+};
+
 fn data(rel: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("tests/data/io")
-        .join(rel)
+    repo("tests/data/io").join(rel)
 }
 
 fn close(a: f64, b: f64) -> bool {
     (a - b).abs() <= 1e-9 * b.abs().max(1.0)
 }
 
-/// Asserts that some problem has this file, row, column and rule, and that its Display
-/// names all four. Returns it for further checks on the message.
-pub(crate) fn expect<'a>(
-    ps: &'a Problems,
-    file: &str,
-    row: Option<usize>,
-    column: Option<&str>,
-    rule: &str,
-) -> &'a Problem {
-    let p = ps
-        .0
-        .iter()
-        .find(|p| p.file == file && p.row == row && p.column.as_deref() == column && p.rule == rule)
-        .unwrap_or_else(|| panic!("no {rule} problem at {file} {row:?} {column:?} in:\n{ps}"));
-    let shown = p.to_string();
-    assert!(shown.starts_with(&format!("{file}: ")), "{shown}");
-    assert!(shown.contains(&format!("[{rule}] ")), "{shown}");
-    match row {
-        Some(0) => assert!(shown.contains("header"), "{shown}"),
-        Some(r) => assert!(shown.contains(&format!("row {r}")), "{shown}"),
-        None => assert!(!shown.contains(": row "), "{shown}"),
-    }
-    if let Some(c) = column {
-        assert!(shown.contains(&format!("column {c}")), "{shown}");
-    }
-    p
-}
-
 // ---------------------------------------------------------------------------------------
-// A small valid scene, edited one defect at a time.
-
-pub const BLOCKS: &str = "\
-x,y,z,block_id,solids_density,porosity,max_porosity,friction_angle,frag_size,lithology,cu
-5,5,5,1,2.7,0.3,0.45,38,0.2,ore,1.0
-15,5,5,2,2.7,0.3,0.45,38,0.2,ore,1.1
-5,15,5,3,2.7,0.3,0.45,38,0.2,ore,1.2
-15,15,5,4,2.7,0.3,0.45,38,0.2,ore,1.3
-5,5,15,5,2.5,0.35,0.5,36,0.5,waste,0.1
-15,5,15,6,2.5,0.35,0.5,36,0.5,waste,0.1
-5,15,15,7,2.5,0.35,0.5,36,0.5,waste,0.1
-15,15,15,8,2.5,0.35,0.5,36,0.5,waste,0.1
-";
-pub const DRAWPOINTS_CSV: &str = "name,x,y,z,width\nDP1,5,5,0,4\nDP2,15,15,0,4\n";
-pub const PERIODS_CSV: &str = "period,name,days\n1,Jan-09,31\n2,Feb-09,28\n";
-pub const SCHEDULE_CSV: &str = "period,drawpoint,tonnes\n1,DP1,100\n1,DP2,100\n2,DP1,50\n";
+// The small valid scene of `fixtures`, edited one defect at a time.
 
 /// The text of each input file of a test scene.
 struct Files {
@@ -434,22 +389,6 @@ fn parquet_reads_and_casts() {
     assert_eq!(l.scene.periods.days, [1.0, 1.0]);
     assert_eq!(l.scene.schedule.period(0), [200.0]);
     assert_eq!(l.inputs[0].rows, 8);
-}
-
-pub fn write_parquet(path: &Path, cols: Vec<(&str, ArrayRef)>) {
-    let fields: Vec<Field> = cols
-        .iter()
-        .map(|(n, a)| Field::new(*n, a.data_type().clone(), true))
-        .collect();
-    let batch = RecordBatch::try_new(
-        Arc::new(Schema::new(fields)),
-        cols.into_iter().map(|c| c.1).collect(),
-    )
-    .unwrap();
-    let mut w =
-        ArrowWriter::try_new(fs::File::create(path).unwrap(), batch.schema(), None).unwrap();
-    w.write(&batch).unwrap();
-    w.close().unwrap();
 }
 
 #[test]
