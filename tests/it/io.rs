@@ -1067,6 +1067,22 @@ fn wide_schedule_with_defects(f: &mut Files) {
     f.schedule = "DPName,Jan-09,Feb-09,Mar-09\nDP1,1,2,-3\nDPX,1,2,3\n".into();
 }
 
+#[test]
+fn wide_schedule_with_periods_table_uses_the_table() {
+    let (_d, r) = load(Files {
+        schedule: "DPName,Jan-09,Feb-09\nDP1,10,20\nDP2,30,\n".into(),
+        ..Files::default()
+    });
+    let l = r.unwrap_or_else(|p| panic!("{p}"));
+    assert_eq!(l.scene.schedule.period(0), [10.0, 30.0]);
+    assert_eq!(l.scene.schedule.period(1), [20.0, 0.0]);
+    assert!(
+        l.warnings.iter().any(|w| w.rule == "periods-table-wins"),
+        "{:?}",
+        l.warnings
+    );
+}
+
 /// Files exported in a hurry (issue 9): one case per rule, each asserting its message.
 #[rustfmt::skip]
 #[test]
