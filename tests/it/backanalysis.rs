@@ -18,7 +18,7 @@ use caveflow::model::{Scenario, Scene};
 use caveflow::output::records::write_records;
 use polars::prelude::*;
 
-use crate::cli::caveflow_in;
+use crate::fixtures::caveflow_in;
 
 /// The hidden truth: Urad fragments are 0.15 m, not the stated 0.23 m.
 const TRUE_FACTOR: f64 = 0.15 / 0.23;

@@ -11,7 +11,7 @@ use caveflow::engine::{Engine, RunOutput, WarningRule};
 use caveflow::model::synthetic::UniformBox;
 use caveflow::model::{Scenario, Scene};
 
-use super::engine::{run, scenario};
+use crate::fixtures::{run, scenario};
 
 /// Median of the correction factor over the `ok` rows of `periods` that drew markers.
 fn median_correction(out: &RunOutput, periods: &[i64]) -> f64 {

@@ -1,7 +1,6 @@
 //! Integration tests: the scenario's `[calibration]` section (model::scenario::Calibration),
 //! applied by `load_scene` to the block model.
 
-use std::fs;
 use std::path::Path;
 
 use caveflow::io::Problems;
@@ -10,32 +9,19 @@ use caveflow::model::scenario::Calibration;
 use caveflow::model::Scenario;
 use tempfile::TempDir;
 
-use crate::io::{BLOCKS, DRAWPOINTS_CSV, PERIODS_CSV, SCHEDULE_CSV};
+use crate::fixtures::{bits, tiny, write_small_scene, SMALL_SCENE_INPUTS};
 
 /// Loads the io tests' small scene (lithologies `ore` and `waste`) under a scenario made of
 /// `toml` and `sets`.
 fn load_with(toml: &str, sets: &[&str]) -> (TempDir, Result<LoadedScene, Problems>) {
     let dir = TempDir::new().unwrap();
-    for (name, text) in [
-        ("blocks.csv", BLOCKS),
-        ("drawpoints.csv", DRAWPOINTS_CSV),
-        ("periods.csv", PERIODS_CSV),
-        ("schedule.csv", SCHEDULE_CSV),
-    ] {
-        fs::write(dir.path().join(name), text).unwrap();
-    }
-    let text = format!(
-        "[inputs]\nblocks = \"blocks.csv\"\ndrawpoints = \"drawpoints.csv\"\nperiods = \"periods.csv\"\nschedule = \"schedule.csv\"\n{toml}"
-    );
+    write_small_scene(dir.path());
+    let text = format!("{SMALL_SCENE_INPUTS}{toml}");
     let sets: Vec<String> = sets.iter().map(|s| s.to_string()).collect();
     let sc = Scenario::from_toml(&text, "scenario.toml", &sets, dir.path())
         .unwrap_or_else(|e| panic!("{e}"));
     let r = load_scene(&sc);
     (dir, r)
-}
-
-fn bits(v: &[f64]) -> Vec<u64> {
-    v.iter().map(|x| x.to_bits()).collect()
 }
 
 #[test]
@@ -202,7 +188,7 @@ fn calibration_out_of_range_blocks_are_named() {
 /// End to end: an identity calibration gives a bit-identical run, and a factor changes it.
 #[test]
 fn calibration_identity_gives_a_bit_identical_run() {
-    let scene = crate::dataset::tiny();
+    let scene = tiny();
     let sc = Scenario::default();
     let run = |c: &Calibration| {
         let mut s = scene.clone();

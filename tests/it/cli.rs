@@ -1,22 +1,17 @@
 //! Integration tests: cli.
 
 use std::path::Path;
-use std::process::Command;
 
-fn caveflow() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_caveflow"))
-}
-
-/// Runs `caveflow args…` in `cwd` to completion.
-pub fn caveflow_in(args: &[&str], cwd: &Path) -> std::process::Output {
-    caveflow().args(args).current_dir(cwd).output().unwrap()
-}
+use crate::fixtures::{
+    caveflow, demo_copy, demo_data, repo, write_parquet, write_small_scene, BLOCKS, DRAWPOINTS_CSV,
+    SCHEDULE_CSV, SMALL_SCENE_INPUTS,
+};
 
 /// The committed schemas/ are exactly what `caveflow schema` prints, so they cannot drift
 /// from the readers and writers.
 #[test]
 fn committed_schemas_match_the_code() {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("schemas");
+    let dir = repo("schemas");
     for t in caveflow::schema::ALL {
         let committed = std::fs::read_to_string(dir.join(format!("{}.json", t.name))).unwrap();
         assert_eq!(
@@ -91,7 +86,7 @@ fn invalid_flags_exit_1_with_clap_message() {
 /// column and rule, exit code 1.
 #[test]
 fn validate_demo_and_a_broken_copy() {
-    let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("data");
+    let data = demo_data();
     let out = caveflow()
         .args(["validate"])
         .arg(data.join("scenario.toml"))
@@ -104,16 +99,7 @@ fn validate_demo_and_a_broken_copy() {
     );
     assert!(String::from_utf8_lossy(&out.stdout).contains("32 drawpoints"));
 
-    let tmp = tempfile::tempdir().unwrap();
-    for f in [
-        "blocks.parquet",
-        "drawpoints.csv",
-        "periods.csv",
-        "schedule.csv",
-        "scenario.toml",
-    ] {
-        std::fs::copy(data.join(f), tmp.path().join(f)).unwrap();
-    }
+    let tmp = demo_copy();
     let sched = std::fs::read_to_string(tmp.path().join("schedule.csv")).unwrap();
     std::fs::write(
         tmp.path().join("schedule.csv"),
@@ -138,7 +124,7 @@ fn validate_demo_and_a_broken_copy() {
 /// `run` with the tables given directly and --set overrides writes every output file.
 #[test]
 fn run_with_tables_and_set() {
-    let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("data");
+    let data = demo_data();
     let tmp = tempfile::tempdir().unwrap();
     // Two periods of the demo at a coarse resolution keep this fast.
     let sched = std::fs::read_to_string(data.join("schedule.csv")).unwrap();
@@ -209,7 +195,7 @@ fn run_with_tables_and_set() {
 /// `resolution.max_marker_move` are invalid input (exit 1) with a message naming them.
 #[test]
 fn run_keep_periods_and_cadence_setting() {
-    let scenario = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/scenario.toml");
+    let scenario = demo_data().join("scenario.toml");
     let tmp = tempfile::tempdir().unwrap();
     let run = |extra: &[&str]| {
         caveflow()
@@ -406,20 +392,14 @@ const CHECKPOINT: &str = caveflow::cli::CHECKPOINT_FILE;
 /// The small valid scene of the io tests, with one file replaced, in a folder with its
 /// scenario.toml.
 fn scene_dir(name: &str, bytes: &[u8]) -> tempfile::TempDir {
-    use crate::io::{BLOCKS, DRAWPOINTS_CSV, PERIODS_CSV, SCHEDULE_CSV};
     let tmp = tempfile::tempdir().unwrap();
-    let files: [(&str, &[u8]); 5] = [
-        ("blocks.csv", BLOCKS.as_bytes()),
-        ("drawpoints.csv", DRAWPOINTS_CSV.as_bytes()),
-        ("periods.csv", PERIODS_CSV.as_bytes()),
-        ("schedule.csv", SCHEDULE_CSV.as_bytes()),
-        (
-            "scenario.toml",
-            b"[inputs]\nblocks = \"blocks.csv\"\ndrawpoints = \"drawpoints.csv\"\nperiods = \"periods.csv\"\nschedule = \"schedule.csv\"\n[outputs]\ncharts = false\n",
-        ),
-    ];
-    for (f, b) in files {
-        std::fs::write(tmp.path().join(f), if f == name { bytes } else { b }).unwrap();
+    write_small_scene(tmp.path());
+    let scenario = format!("{SMALL_SCENE_INPUTS}[outputs]\ncharts = false\n");
+    std::fs::write(tmp.path().join("scenario.toml"), scenario).unwrap();
+    // Only one of those files is replaced: "none" names none of them.
+    let replaced = tmp.path().join(name);
+    if replaced.exists() {
+        std::fs::write(replaced, bytes).unwrap();
     }
     tmp
 }
@@ -429,7 +409,6 @@ fn scene_dir(name: &str, bytes: &[u8]) -> tempfile::TempDir {
 /// and `run` leaves no output directory behind.
 #[test]
 fn bad_input_exits_1_with_file_row_column_rule_and_writes_nothing() {
-    use crate::io::{BLOCKS, SCHEDULE_CSV};
     let mut non_utf8 = BLOCKS.as_bytes().to_vec();
     let at = BLOCKS.find("waste").unwrap();
     non_utf8[at + 1] = 0xE1;
@@ -551,7 +530,7 @@ fn bad_input_exits_1_with_file_row_column_rule_and_writes_nothing() {
     let dir = scene_dir("none", b"");
     let dp = dir.path().join("drawpoints.parquet");
     let f = |v: Vec<f64>| std::sync::Arc::new(arrow::array::Float64Array::from(v)) as _;
-    crate::io::write_parquet(
+    write_parquet(
         &dp,
         vec![
             (
@@ -585,8 +564,7 @@ fn bad_input_exits_1_with_file_row_column_rule_and_writes_nothing() {
     // A Parquet file that panics inside the parquet crate (found by the fuzz harness): the
     // panic is caught without a word on stderr, and reported.
     let dir = scene_dir("none", b"");
-    let crash = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("tests/data/io/fuzz/negative_column_start.parquet");
+    let crash = repo("tests/data/io/fuzz/negative_column_start.parquet");
     let out = caveflow()
         .arg("validate")
         .arg("--blocks")
@@ -611,7 +589,6 @@ fn bad_input_exits_1_with_file_row_column_rule_and_writes_nothing() {
 /// and the manifest.
 #[test]
 fn stability_refusal_and_warning_end_to_end() {
-    use crate::io::BLOCKS;
     // Fragments of 3 m through 4 m drawpoints: d̄/w = 0.75.
     let coarse = BLOCKS.replace("38,0.2,ore", "38,3,ore");
     let dir = scene_dir("blocks.csv", coarse.as_bytes());
@@ -661,7 +638,6 @@ fn stability_refusal_and_warning_end_to_end() {
 /// semicolons, a tab-delimited wide schedule, CRLF line ends.
 #[test]
 fn tolerated_variants_validate() {
-    use crate::io::BLOCKS;
     let bom = format!("\u{feff}{BLOCKS}");
     let quoted = BLOCKS.replacen("2.7,0.3", "\" 2.7 \",\"0.3\"", 1);
     let tabs = BLOCKS.replace(',', "\t");
@@ -694,7 +670,6 @@ fn tolerated_variants_validate() {
 /// refused with its row; a tab-delimited schedule and a skipped period run.
 #[test]
 fn massflow_crash_cases() {
-    use crate::io::DRAWPOINTS_CSV;
     let outside = DRAWPOINTS_CSV.replace("DP2,15,15,0,4", "DP2,500,15,0,4");
     let dir = scene_dir("drawpoints.csv", outside.as_bytes());
     let out = caveflow()

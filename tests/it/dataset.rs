@@ -9,26 +9,11 @@ use arrow::compute::{concat_batches, take_record_batch};
 use arrow::datatypes::Int64Type;
 use arrow::record_batch::RecordBatch;
 use caveflow::engine::Engine;
-use caveflow::model::synthetic::UniformBox;
 use caveflow::model::{Scenario, Scene};
 use caveflow::output::dataset::HiveLayout;
 use caveflow::output::{write_run_with, Manifest};
 
-use crate::output::{entries, read_parquet};
-
-/// Two drawpoints drawing 6 kg from a 0.6 × 0.6 × 0.9 m box of Castro gravel in each of 3
-/// periods (grade `elev`: the block's elevation; lithology `uniform`).
-pub fn tiny() -> Scene {
-    UniformBox {
-        extent: [0.6, 0.6, 0.9],
-        block: [0.05, 0.05, 0.05],
-        drawpoints: vec![(-0.15, 0.0, 0.12), (0.15, 0.0, 0.12)],
-        periods: 3,
-        tonnes: 0.006,
-        ..UniformBox::castro_isolated()
-    }
-    .scene()
-}
+use crate::fixtures::{entries, read_parquet, tiny};
 
 /// Runs `scene` and writes the run into `dir` with `sc`'s dataset layout.
 fn run_into(dir: &Path, scene: &Scene, sc: &Scenario) -> Vec<PathBuf> {

@@ -11,19 +11,7 @@ use caveflow::engine::{Engine, EngineError, MarkerState, RunOutput, WarningRule}
 use caveflow::model::synthetic::UniformBox;
 use caveflow::model::{Scenario, Scene};
 
-pub fn run(scene: &Scene, sc: &Scenario) -> RunOutput {
-    Engine::new(scene, sc).unwrap().run(&mut |_, _| {})
-}
-
-/// A scenario at an explicit resolution: disk thickness `h`, marker spacing `s`, draw
-/// increment `inc` (t per drawpoint per step).
-pub fn scenario(h: f64, s: f64, inc: f64) -> Scenario {
-    let mut sc = Scenario::default();
-    sc.resolution.layer_thickness = Some(h);
-    sc.resolution.marker_spacing = Some(s);
-    sc.resolution.draw_increment = Some(inc);
-    sc
-}
+use crate::fixtures::{assert_identical, run, scenario};
 
 /// Sets a schedule of cumulative tonnes per period (same for every drawpoint).
 fn cumulative_schedule(scene: &mut Scene, cum: &[f64]) {
@@ -341,107 +329,6 @@ fn conservation_of_tonnes_and_markers() {
 // ---------------------------------------------------------------------------------------
 // 2. Determinism
 // ---------------------------------------------------------------------------------------
-
-fn bits(v: &[f64]) -> Vec<u64> {
-    v.iter().map(|x| x.to_bits()).collect()
-}
-
-/// Compares two runs field by field, f64 bitwise.
-pub fn assert_identical(a: &RunOutput, b: &RunOutput, what: &str) {
-    macro_rules! same {
-        ($t:ident . $f:ident) => {
-            assert_eq!(
-                a.$t.$f,
-                b.$t.$f,
-                "{what}: {}.{} differ",
-                stringify!($t),
-                stringify!($f)
-            );
-        };
-        (f $t:ident . $f:ident) => {
-            assert_eq!(
-                bits(&a.$t.$f),
-                bits(&b.$t.$f),
-                "{what}: {}.{} differ",
-                stringify!($t),
-                stringify!($f)
-            );
-        };
-    }
-    same!(extraction.drawpoint);
-    same!(extraction.period);
-    same!(f extraction.scheduled_tonnes);
-    same!(f extraction.marker_tonnes);
-    same!(f extraction.correction);
-    same!(f extraction.tonnes);
-    same!(f extraction.shortfall_tonnes);
-    same!(f extraction.cum_tonnes);
-    same!(extraction.markers);
-    same!(f extraction.dilution);
-    same!(f extraction.origin_z);
-    same!(f extraction.hod);
-    same!(f extraction.frag_size);
-    same!(f extraction.fines_share);
-    same!(f extraction.air_gap);
-    same!(extraction.status);
-    let g = |o: &RunOutput| {
-        o.extraction
-            .grades
-            .iter()
-            .chain(&o.extraction.lithology)
-            .map(|c| bits(c))
-            .collect::<Vec<_>>()
-    };
-    assert_eq!(g(a), g(b), "{what}: grades/lithology differ");
-    same!(imz.drawpoint);
-    same!(imz.period);
-    same!(imz.disk);
-    same!(f imz.z_base);
-    same!(f imz.z_top);
-    same!(f imz.radius);
-    same!(drawn.marker_id);
-    same!(drawn.drawpoint);
-    same!(drawn.period);
-    same!(f drawn.origin_x);
-    same!(f drawn.origin_y);
-    same!(f drawn.origin_z);
-    same!(f drawn.mass);
-    same!(drawn.block_id);
-    same!(f drawn.frag_size);
-    assert_eq!(a.snapshots.len(), b.snapshots.len());
-    for (s, t) in a.snapshots.iter().zip(&b.snapshots) {
-        assert_eq!(s.period, t.period);
-        assert_eq!(s.marker_id, t.marker_id, "{what}: snapshot ids differ");
-        for (u, v, f) in [
-            (&s.x, &t.x, "x"),
-            (&s.y, &t.y, "y"),
-            (&s.z, &t.z, "z"),
-            (&s.origin_x, &t.origin_x, "origin_x"),
-            (&s.origin_y, &t.origin_y, "origin_y"),
-            (&s.origin_z, &t.origin_z, "origin_z"),
-            (&s.porosity, &t.porosity, "porosity"),
-            (&s.mass, &t.mass, "mass"),
-            (&s.frag_size, &t.frag_size, "frag_size"),
-            (&s.shear_strain, &t.shear_strain, "shear_strain"),
-            (&s.shear_work, &t.shear_work, "shear_work"),
-        ] {
-            assert_eq!(
-                bits(u),
-                bits(v),
-                "{what}: snapshot {} {f} differs",
-                s.period
-            );
-        }
-        assert_eq!(s.block_id, t.block_id);
-        assert_eq!(s.state, t.state);
-        assert_eq!(s.drawpoint, t.drawpoint);
-        assert_eq!(s.drawn_period, t.drawn_period);
-    }
-    assert_eq!(a.warnings, b.warnings, "{what}: warnings differ");
-    assert_eq!(a.resolution, b.resolution);
-    let mb = |o: &RunOutput| serde_json::to_string(&o.balance).unwrap();
-    assert_eq!(mb(a), mb(b), "{what}: mass balance differs");
-}
 
 #[test]
 fn runs_are_deterministic_across_repeats_and_thread_counts() {

@@ -10,6 +10,7 @@ mod calibration;
 mod cli;
 mod dataset;
 mod engine;
+mod fixtures;
 mod io;
 mod layering;
 mod massflow;

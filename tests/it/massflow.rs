@@ -12,7 +12,7 @@ use caveflow::model::Scenario;
 use caveflow::schema::{BLOCK_MODEL, DRAWBELLS, DRAWPOINTS};
 use tempfile::TempDir;
 
-use crate::io::expect;
+use crate::fixtures::expect;
 
 /// The block model header: the DESIGN's MassFlow names, then one grade.
 const BLOCK_HEADER: &str = "Easting,Northing,Elevation,CavePeriod,BlockID,SolidsDen,InSituPor,MaxPor,FricAng,PriFragA,PriFragB,TenStrA,TenStrB,UCS,PercK1,PercK2,PercVMR,Cu";

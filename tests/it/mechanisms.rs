@@ -9,13 +9,13 @@ use caveflow::engine::RunOutput;
 use caveflow::model::synthetic::UniformBox;
 use caveflow::model::{Scenario, Scene};
 
-use super::engine::{assert_identical, run};
+use crate::fixtures::{assert_identical, run};
 
 /// A scenario at an explicit resolution (never the automatic one), seed 11.
 fn scenario(h: f64, s: f64, inc: f64) -> Scenario {
     Scenario {
         seed: 11,
-        ..super::engine::scenario(h, s, inc)
+        ..crate::fixtures::scenario(h, s, inc)
     }
 }
 

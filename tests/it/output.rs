@@ -3,12 +3,11 @@
 
 use std::fs;
 use std::io::Write;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::{Duration, UNIX_EPOCH};
 
 use arrow::array::{ArrayRef, AsArray, Float64Array, RecordBatch};
-use arrow::compute::concat_batches;
 use arrow::datatypes::{DataType, Float64Type, Int64Type, Schema};
 use caveflow::engine::result::{
     AirGapTable, CorrectionStats, DrawnTable, Extraction, ImzTable, MarkerSnapshot, MarkerState,
@@ -22,24 +21,7 @@ use caveflow::output::{write_atomic, write_parquet, write_run, AtomicFile, Input
 use caveflow::schema::{self, TableSpec};
 use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
 
-pub fn read_parquet(path: &Path) -> RecordBatch {
-    let file = fs::File::open(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-    let builder = ParquetRecordBatchReaderBuilder::try_new(file).unwrap();
-    // The file's own Arrow schema, table-level metadata included.
-    let schema = builder.schema().clone();
-    let batches: Vec<RecordBatch> = builder.build().unwrap().map(Result::unwrap).collect();
-    concat_batches(&schema, &batches).unwrap()
-}
-
-/// Names of the entries of a directory, sorted.
-pub fn entries(dir: &Path) -> Vec<String> {
-    let mut v: Vec<String> = fs::read_dir(dir)
-        .unwrap()
-        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-        .collect();
-    v.sort();
-    v
-}
+use crate::fixtures::{entries, read_parquet};
 
 fn f64_col(batch: &RecordBatch, name: &str) -> Vec<f64> {
     batch

@@ -1,14 +1,11 @@
 //! Integration tests: the run plan (`engine::plan`). What `validate` accepts is what the
 //! engine runs, and a resolution given to a plan is the one the engine uses.
 
-use std::path::Path;
-use std::process::Command;
-
 use caveflow::engine::{Engine, EngineError, ResolvedResolution, RunPlan, WarningRule};
 use caveflow::model::synthetic::UniformBox;
 use caveflow::model::Scenario;
 
-use crate::engine::{assert_identical, run, scenario};
+use crate::fixtures::{assert_identical, caveflow, demo_data, run, scenario};
 
 /// A small isolated draw (3 periods of 0.02 t) at an explicit, coarse resolution.
 fn small() -> (caveflow::model::Scene, Scenario) {
@@ -92,10 +89,9 @@ fn a_lattice_too_large_is_refused_by_the_plan_and_by_validate() {
         Err(EngineError::TooManySites { sites, .. }) => assert!(sites > 2_000_000_000),
         other => panic!("expected TooManySites, got {other:?}"),
     }
-    let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("data");
-    let out = Command::new(env!("CARGO_BIN_EXE_caveflow"))
+    let out = caveflow()
         .arg("validate")
-        .arg(data.join("scenario.toml"))
+        .arg(demo_data().join("scenario.toml"))
         .args(["--set", "resolution.marker_spacing=0.01"])
         .output()
         .unwrap();

@@ -6,25 +6,17 @@ use std::path::Path;
 
 use caveflow::io::{Problem, Problems};
 use caveflow::model::load::load_scene;
-use caveflow::model::{load_records, Drawpoints, Periods, ProductionRecords, Scenario};
+use caveflow::model::{load_records, Drawpoints, Periods, ProductionRecords};
 use caveflow::output::records::write_records;
 use tempfile::TempDir;
 
-use crate::io::{BLOCKS, DRAWPOINTS_CSV, SCHEDULE_CSV};
+use crate::fixtures::small_scene_in;
 
 /// Writes the io tests' small scene (drawpoints DP1 and DP2, grade `cu`) into `dir`, with
 /// `periods` as its periods table, and loads it.
 fn load_in(dir: &Path, periods: &str) -> Result<caveflow::model::load::LoadedScene, Problems> {
-    let mut sc = Scenario::default();
-    let write = |name: &str, text: &str| {
-        let p = dir.join(name);
-        fs::write(&p, text).unwrap();
-        p
-    };
-    sc.inputs.blocks = write("blocks.csv", BLOCKS);
-    sc.inputs.drawpoints = write("drawpoints.csv", DRAWPOINTS_CSV);
-    sc.inputs.schedule = write("schedule.csv", SCHEDULE_CSV);
-    sc.inputs.periods = Some(write("periods.csv", periods));
+    let sc = small_scene_in(dir);
+    fs::write(dir.join("periods.csv"), periods).unwrap();
     load_scene(&sc)
 }
 
@@ -48,19 +40,11 @@ fn load(periods: &str, records: &str) -> Result<ProductionRecords, Problems> {
     load_records(&path, &d, &p, &g)
 }
 
-/// The problem at this row, column and rule, checking that its Display names all four.
+/// The records.csv problem at this row, column and rule, checking that its Display names
+/// all four, the column just before the rule.
 fn expect<'a>(ps: &'a Problems, row: Option<usize>, column: &str, rule: &str) -> &'a Problem {
-    let p =
-        ps.0.iter()
-            .find(|p| p.row == row && p.column.as_deref() == Some(column) && p.rule == rule)
-            .unwrap_or_else(|| panic!("no {rule} problem at {row:?} {column} in:\n{ps}"));
+    let p = crate::fixtures::expect(ps, "records.csv", row, Some(column), rule);
     let shown = p.to_string();
-    assert!(shown.starts_with("records.csv: "), "{shown}");
-    match row {
-        Some(0) => assert!(shown.contains("header"), "{shown}"),
-        Some(r) => assert!(shown.contains(&format!("row {r}")), "{shown}"),
-        None => {}
-    }
     assert!(
         shown.contains(&format!("column {column}: [{rule}] ")),
         "{shown}"

@@ -5,13 +5,11 @@
 use std::collections::{HashMap, HashSet};
 
 use caveflow::engine::rilling::{tan_repose, CELL};
-use caveflow::engine::{Engine, MarkerState, RunOutput};
+use caveflow::engine::{MarkerState, RunOutput};
 use caveflow::model::synthetic::UniformBox;
 use caveflow::model::{Scenario, Scene};
 
-fn run(scene: &Scene, sc: &Scenario) -> RunOutput {
-    Engine::new(scene, sc).unwrap().run(&mut |_, _| {})
-}
+use crate::fixtures::run;
 
 /// h = 25 mm, markers 12.5 mm, 0.5 kg increments, rilling on or off.
 fn scenario(rilling: bool) -> Scenario {

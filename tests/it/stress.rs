@@ -14,8 +14,7 @@ use caveflow::model::synthetic::UniformBox;
 use caveflow::model::Scene;
 use caveflow::output::stress::{write_stress, write_stress_charts};
 
-use super::engine::{run, scenario};
-use super::output::read_parquet;
+use crate::fixtures::{read_parquet, run, scenario};
 
 /// IN-T4 / IN-T5 after Castro (2006): 3 × 3 drawpoints (120 mm openings) at `spacing` on the
 /// floor of a 3.6 × 2.6 × 3.3 m box of the Castro material (8.3 mm fragments, φ = 40°),

@@ -1,8 +1,6 @@
 //! Integration tests: synthetic production records (analysis::records) and the demo's
 //! committed `data/records.csv`.
 
-use std::path::Path;
-
 use caveflow::analysis::records::{sample, synthetic_records, SyntheticRecords};
 use caveflow::engine::result::Extraction;
 use caveflow::model::load::load_scene;
@@ -10,7 +8,7 @@ use caveflow::model::scenario::Calibration;
 use caveflow::model::{load_records, Scenario};
 use caveflow::output::records::write_records;
 
-use crate::dataset::tiny;
+use crate::fixtures::{demo_data, tiny};
 
 fn cfg(factor: f64, sigma: f64) -> SyntheticRecords {
     let mut truth = Calibration::default();
@@ -125,7 +123,7 @@ fn synthetic_noise_has_the_requested_sigma() {
 /// small scene.)
 #[test]
 fn committed_demo_records_are_valid() {
-    let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("data");
+    let data = demo_data();
     let sc = Scenario::load(&data.join("scenario.toml"), &[]).unwrap();
     let s = load_scene(&sc).unwrap_or_else(|p| panic!("{p}")).scene;
     let r = load_records(

@@ -16,10 +16,7 @@ use caveflow::model::{Scenario, Scene};
 use caveflow::output::inputs::write_scene;
 use tempfile::TempDir;
 
-use crate::cli::caveflow_in;
-use crate::engine::{assert_identical, scenario};
-use crate::io::expect;
-use crate::output::read_parquet;
+use crate::fixtures::{assert_identical, caveflow_in, entries, expect, read_parquet, scenario};
 
 /// A 0.8 × 0.8 × 1.2 m box of Castro material (8.3 mm fragments, 50 mm blocks) with one
 /// 120 mm drawpoint at its centre, drawn 20 kg a period for 8 periods; h = 25 mm, markers
@@ -149,7 +146,7 @@ fn trace_points_change_no_other_output_and_survive_a_resume() {
         dir
     };
     let (a, b) = (write(&plain), write(&traced));
-    let files = crate::output::entries(a.path());
+    let files = entries(a.path());
     let mut compared = 0;
     let snapshot = format!("markers/period={}/part-0.parquet", scene.periods.len());
     let tables = files.iter().filter(|f| f.ends_with(".parquet"));
@@ -162,7 +159,7 @@ fn trace_points_change_no_other_output_and_survive_a_resume() {
         compared += 1;
     }
     assert!(compared >= 6, "{files:?}");
-    let mut with = crate::output::entries(b.path());
+    let mut with = entries(b.path());
     with.retain(|f| !files.contains(f));
     assert_eq!(with, ["trace.parquet"]);
 

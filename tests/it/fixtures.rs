@@ -1,0 +1,322 @@
+//! Fixtures shared by the test modules: the command under test, the demo's `data/`, the small
+//! valid scene of the input tests, a tiny box scene, runs and their comparison, Parquet
+//! files, and the check of a reported problem.
+
+use std::fs;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+use std::sync::Arc;
+
+use arrow::array::{ArrayRef, RecordBatch};
+use arrow::compute::concat_batches;
+use arrow::datatypes::{Field, Schema};
+use caveflow::engine::{Engine, RunOutput};
+use caveflow::io::{Problem, Problems};
+use caveflow::model::synthetic::UniformBox;
+use caveflow::model::{Scenario, Scene};
+use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
+use parquet::arrow::ArrowWriter;
+use tempfile::TempDir;
+
+// ---------------------------------------------------------------------------------------
+// The command and the demo.
+
+/// The `caveflow` binary built for these tests.
+pub fn caveflow() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_caveflow"))
+}
+
+/// Runs `caveflow args…` in `cwd` to completion.
+pub fn caveflow_in(args: &[&str], cwd: &Path) -> Output {
+    caveflow().args(args).current_dir(cwd).output().unwrap()
+}
+
+/// A path in the repository (`schemas`, `tests/data/io`, …).
+pub fn repo(rel: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join(rel)
+}
+
+/// The committed demo, `data/`.
+pub fn demo_data() -> PathBuf {
+    repo("data")
+}
+
+/// A copy of the demo's input tables and scenario file in a temporary folder.
+pub fn demo_copy() -> TempDir {
+    let data = demo_data();
+    let tmp = TempDir::new().unwrap();
+    for f in [
+        "blocks.parquet",
+        "drawpoints.csv",
+        "periods.csv",
+        "schedule.csv",
+        "scenario.toml",
+    ] {
+        fs::copy(data.join(f), tmp.path().join(f)).unwrap();
+    }
+    tmp
+}
+
+// ---------------------------------------------------------------------------------------
+// The small valid scene of the input tests: 8 blocks of 10 m, two drawpoints, two periods.
+
+pub const BLOCKS: &str = "\
+x,y,z,block_id,solids_density,porosity,max_porosity,friction_angle,frag_size,lithology,cu
+5,5,5,1,2.7,0.3,0.45,38,0.2,ore,1.0
+15,5,5,2,2.7,0.3,0.45,38,0.2,ore,1.1
+5,15,5,3,2.7,0.3,0.45,38,0.2,ore,1.2
+15,15,5,4,2.7,0.3,0.45,38,0.2,ore,1.3
+5,5,15,5,2.5,0.35,0.5,36,0.5,waste,0.1
+15,5,15,6,2.5,0.35,0.5,36,0.5,waste,0.1
+5,15,15,7,2.5,0.35,0.5,36,0.5,waste,0.1
+15,15,15,8,2.5,0.35,0.5,36,0.5,waste,0.1
+";
+pub const DRAWPOINTS_CSV: &str = "name,x,y,z,width\nDP1,5,5,0,4\nDP2,15,15,0,4\n";
+pub const PERIODS_CSV: &str = "period,name,days\n1,Jan-09,31\n2,Feb-09,28\n";
+pub const SCHEDULE_CSV: &str = "period,drawpoint,tonnes\n1,DP1,100\n1,DP2,100\n2,DP1,50\n";
+
+/// The `[inputs]` section of a scenario file beside the small scene's files.
+pub const SMALL_SCENE_INPUTS: &str = "[inputs]\nblocks = \"blocks.csv\"\ndrawpoints = \"drawpoints.csv\"\nperiods = \"periods.csv\"\nschedule = \"schedule.csv\"\n";
+
+/// Writes the small scene's four tables into `dir`.
+pub fn write_small_scene(dir: &Path) {
+    for (name, text) in [
+        ("blocks.csv", BLOCKS),
+        ("drawpoints.csv", DRAWPOINTS_CSV),
+        ("periods.csv", PERIODS_CSV),
+        ("schedule.csv", SCHEDULE_CSV),
+    ] {
+        fs::write(dir.join(name), text).unwrap();
+    }
+}
+
+/// Writes the small scene into `dir` and returns a default scenario naming its tables.
+pub fn small_scene_in(dir: &Path) -> Scenario {
+    write_small_scene(dir);
+    let mut sc = Scenario::default();
+    sc.inputs.blocks = dir.join("blocks.csv");
+    sc.inputs.drawpoints = dir.join("drawpoints.csv");
+    sc.inputs.periods = Some(dir.join("periods.csv"));
+    sc.inputs.schedule = dir.join("schedule.csv");
+    sc
+}
+
+/// Finds the problem with this file, row, column and rule, and checks that its Display names
+/// all four; says what is wrong otherwise.
+pub fn find<'a>(
+    ps: &'a Problems,
+    file: &str,
+    row: Option<usize>,
+    column: Option<&str>,
+    rule: &str,
+) -> Result<&'a Problem, String> {
+    let p = ps
+        .0
+        .iter()
+        .find(|p| p.file == file && p.row == row && p.column.as_deref() == column && p.rule == rule)
+        .ok_or_else(|| format!("no {rule} problem at {file} {row:?} {column:?} in:\n{ps}"))?;
+    let shown = p.to_string();
+    let mut named =
+        shown.starts_with(&format!("{file}: ")) && shown.contains(&format!("[{rule}] "));
+    named &= match row {
+        Some(0) => shown.contains("header"),
+        Some(r) => shown.contains(&format!("row {r}")),
+        None => !shown.contains(": row "),
+    };
+    if let Some(c) = column {
+        named &= shown.contains(&format!("column {c}"));
+    }
+    if named {
+        Ok(p)
+    } else {
+        Err(format!(
+            "the problem does not name its place and rule: {shown}"
+        ))
+    }
+}
+
+/// Asserts that some problem has this file, row, column and rule, and that its Display
+/// names all four. Returns it for further checks on the message.
+pub fn expect<'a>(
+    ps: &'a Problems,
+    file: &str,
+    row: Option<usize>,
+    column: Option<&str>,
+    rule: &str,
+) -> &'a Problem {
+    find(ps, file, row, column, rule).unwrap_or_else(|e| panic!("{e}"))
+}
+
+// ---------------------------------------------------------------------------------------
+// Scenes and runs.
+
+/// Two drawpoints drawing 6 kg from a 0.6 × 0.6 × 0.9 m box of Castro gravel in each of 3
+/// periods (grade `elev`: the block's elevation; lithology `uniform`).
+pub fn tiny() -> Scene {
+    UniformBox {
+        extent: [0.6, 0.6, 0.9],
+        block: [0.05, 0.05, 0.05],
+        drawpoints: vec![(-0.15, 0.0, 0.12), (0.15, 0.0, 0.12)],
+        periods: 3,
+        tonnes: 0.006,
+        ..UniformBox::castro_isolated()
+    }
+    .scene()
+}
+
+/// Runs `scene` under `sc` to the end.
+pub fn run(scene: &Scene, sc: &Scenario) -> RunOutput {
+    Engine::new(scene, sc).unwrap().run(&mut |_, _| {})
+}
+
+/// A scenario at an explicit resolution: disk thickness `h`, marker spacing `s`, draw
+/// increment `inc` (t per drawpoint per step).
+pub fn scenario(h: f64, s: f64, inc: f64) -> Scenario {
+    let mut sc = Scenario::default();
+    sc.resolution.layer_thickness = Some(h);
+    sc.resolution.marker_spacing = Some(s);
+    sc.resolution.draw_increment = Some(inc);
+    sc
+}
+
+/// The bit patterns of `v`, to compare floats exactly.
+pub fn bits(v: &[f64]) -> Vec<u64> {
+    v.iter().map(|x| x.to_bits()).collect()
+}
+
+/// Compares two runs field by field, f64 bitwise.
+pub fn assert_identical(a: &RunOutput, b: &RunOutput, what: &str) {
+    macro_rules! same {
+        ($t:ident . $f:ident) => {
+            assert_eq!(
+                a.$t.$f,
+                b.$t.$f,
+                "{what}: {}.{} differ",
+                stringify!($t),
+                stringify!($f)
+            );
+        };
+        (f $t:ident . $f:ident) => {
+            assert_eq!(
+                bits(&a.$t.$f),
+                bits(&b.$t.$f),
+                "{what}: {}.{} differ",
+                stringify!($t),
+                stringify!($f)
+            );
+        };
+    }
+    same!(extraction.drawpoint);
+    same!(extraction.period);
+    same!(f extraction.scheduled_tonnes);
+    same!(f extraction.marker_tonnes);
+    same!(f extraction.correction);
+    same!(f extraction.tonnes);
+    same!(f extraction.shortfall_tonnes);
+    same!(f extraction.cum_tonnes);
+    same!(extraction.markers);
+    same!(f extraction.dilution);
+    same!(f extraction.origin_z);
+    same!(f extraction.hod);
+    same!(f extraction.frag_size);
+    same!(f extraction.fines_share);
+    same!(f extraction.air_gap);
+    same!(extraction.status);
+    let g = |o: &RunOutput| {
+        o.extraction
+            .grades
+            .iter()
+            .chain(&o.extraction.lithology)
+            .map(|c| bits(c))
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(g(a), g(b), "{what}: grades/lithology differ");
+    same!(imz.drawpoint);
+    same!(imz.period);
+    same!(imz.disk);
+    same!(f imz.z_base);
+    same!(f imz.z_top);
+    same!(f imz.radius);
+    same!(drawn.marker_id);
+    same!(drawn.drawpoint);
+    same!(drawn.period);
+    same!(f drawn.origin_x);
+    same!(f drawn.origin_y);
+    same!(f drawn.origin_z);
+    same!(f drawn.mass);
+    same!(drawn.block_id);
+    same!(f drawn.frag_size);
+    assert_eq!(a.snapshots.len(), b.snapshots.len());
+    for (s, t) in a.snapshots.iter().zip(&b.snapshots) {
+        assert_eq!(s.period, t.period);
+        assert_eq!(s.marker_id, t.marker_id, "{what}: snapshot ids differ");
+        for (u, v, f) in [
+            (&s.x, &t.x, "x"),
+            (&s.y, &t.y, "y"),
+            (&s.z, &t.z, "z"),
+            (&s.origin_x, &t.origin_x, "origin_x"),
+            (&s.origin_y, &t.origin_y, "origin_y"),
+            (&s.origin_z, &t.origin_z, "origin_z"),
+            (&s.porosity, &t.porosity, "porosity"),
+            (&s.mass, &t.mass, "mass"),
+            (&s.frag_size, &t.frag_size, "frag_size"),
+            (&s.shear_strain, &t.shear_strain, "shear_strain"),
+            (&s.shear_work, &t.shear_work, "shear_work"),
+        ] {
+            assert_eq!(
+                bits(u),
+                bits(v),
+                "{what}: snapshot {} {f} differs",
+                s.period
+            );
+        }
+        assert_eq!(s.block_id, t.block_id);
+        assert_eq!(s.state, t.state);
+        assert_eq!(s.drawpoint, t.drawpoint);
+        assert_eq!(s.drawn_period, t.drawn_period);
+    }
+    assert_eq!(a.warnings, b.warnings, "{what}: warnings differ");
+    assert_eq!(a.resolution, b.resolution);
+    let mb = |o: &RunOutput| serde_json::to_string(&o.balance).unwrap();
+    assert_eq!(mb(a), mb(b), "{what}: mass balance differs");
+}
+
+// ---------------------------------------------------------------------------------------
+// Files.
+
+/// A whole Parquet file as one batch, with the file's own Arrow schema (table-level metadata
+/// included).
+pub fn read_parquet(path: &Path) -> RecordBatch {
+    let file = fs::File::open(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let builder = ParquetRecordBatchReaderBuilder::try_new(file).unwrap();
+    let schema = builder.schema().clone();
+    let batches: Vec<RecordBatch> = builder.build().unwrap().map(Result::unwrap).collect();
+    concat_batches(&schema, &batches).unwrap()
+}
+
+/// Writes named columns as a Parquet file, every field nullable.
+pub fn write_parquet(path: &Path, cols: Vec<(&str, ArrayRef)>) {
+    let fields: Vec<Field> = cols
+        .iter()
+        .map(|(n, a)| Field::new(*n, a.data_type().clone(), true))
+        .collect();
+    let batch = RecordBatch::try_new(
+        Arc::new(Schema::new(fields)),
+        cols.into_iter().map(|c| c.1).collect(),
+    )
+    .unwrap();
+    let mut w =
+        ArrowWriter::try_new(fs::File::create(path).unwrap(), batch.schema(), None).unwrap();
+    w.write(&batch).unwrap();
+    w.close().unwrap();
+}
+
+/// Names of the entries of a directory, sorted.
+pub fn entries(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> = fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    v.sort();
+    v
+}
