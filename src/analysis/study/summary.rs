@@ -150,7 +150,7 @@ impl SummaryRow {
 }
 
 /// Writes `summary.parquet` (atomically): the fixed columns of
-/// [`STUDY_SUMMARY`](crate::schema::STUDY_SUMMARY), then one column per swept dimension
+/// [`crate::schema::STUDY_SUMMARY`], then one column per swept dimension
 /// (`columns`: Float64 when every value is a number, else Utf8), then the mean grade and
 /// the recovery of each grade of the first row's block model.
 pub fn write_summary(
