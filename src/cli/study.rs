@@ -7,7 +7,7 @@ use std::process::ExitCode;
 use anyhow::Result;
 use clap::Args;
 
-use crate::analysis::study::runner::{run_variant, Progress};
+use crate::analysis::study::runner::{run_variant, stale_variants, Progress};
 use crate::analysis::study::{run_study, Layout, Outcome, Study};
 
 /// `caveflow study`.
@@ -118,6 +118,14 @@ pub fn study_cmd(a: StudyArgs) -> Result<ExitCode> {
         report.rows.len(),
         layout.dir.join("dataset").display()
     );
+    let stale = stale_variants(&study, &layout);
+    if !stale.is_empty() {
+        eprintln!(
+            "warning: {} holds variants this study no longer has (kept; remove them by hand if unwanted): {}",
+            layout.dir.join("dataset").display(),
+            stale.join(", ")
+        );
+    }
     if report.failed.is_empty() {
         Ok(ExitCode::SUCCESS)
     } else {

@@ -440,3 +440,78 @@ fn cli_plan_variant_and_study_share_the_layout() {
     assert!(err.contains("[empty-grid] grid.flow.q"), "{err}");
     assert!(!fresh.exists());
 }
+
+#[test]
+fn the_cli_killed_mid_study_and_run_again_completes_every_variant_once() {
+    let tmp = tempfile::tempdir().unwrap();
+    scene_files(tmp.path());
+    let path = study_file(
+        tmp.path(),
+        "[grid]\n\"calibration.frag_factor.uniform\" = [0.6, 0.7, 0.8, 0.9, 1.0]\nflow.q = [3.0, 3.5]\n",
+    );
+    let study = Study::expand(&path).unwrap();
+    assert_eq!(study.variants.len(), 10);
+    // The reference: the same study, uninterrupted, in process.
+    let reference = Layout::new(&tmp.path().join("reference"), &study);
+    run_study(&study, &reference, 2, &Quiet).unwrap();
+    let out = tmp.path().join("out");
+    let layout = Layout::new(&out, &study);
+    let complete = || {
+        study
+            .variants
+            .iter()
+            .filter(|v| layout.is_complete(v))
+            .count()
+    };
+    // Killed (SIGKILL) as soon as the first variant is complete.
+    let mut child = Command::new(env!("CARGO_BIN_EXE_caveflow"))
+        .args([
+            "study",
+            path.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ])
+        .args(["--jobs", "1"])
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let t0 = std::time::Instant::now();
+    while complete() == 0 && t0.elapsed().as_secs() < 60 {
+        std::thread::sleep(std::time::Duration::from_millis(2));
+    }
+    child.kill().unwrap();
+    child.wait().unwrap();
+    let before = complete();
+    eprintln!("killed with {before} of 10 variants complete");
+    assert!(
+        (1..10).contains(&before),
+        "killed mid-study: {before} of 10 complete"
+    );
+    // Run again: the rest run, once each; the complete ones are skipped.
+    let r = caveflow(&[
+        "study",
+        path.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let stdout = String::from_utf8_lossy(&r.stdout);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    assert!(
+        stdout.contains(&format!(
+            "{} ran, {before} complete already, 0 failed",
+            10 - before
+        )),
+        "{stdout}"
+    );
+    assert_eq!(complete(), 10);
+    // The dataset: every variant once, the rows and tonnes of the uninterrupted study.
+    assert_eq!(dataset_tonnes(&layout), dataset_tonnes(&reference));
+    for t in TABLES {
+        let (a, b) = (layout.table_root(t), reference.table_root(t));
+        if b.exists() {
+            assert_eq!(entries(&a), entries(&b), "{t}");
+        }
+    }
+    assert_eq!(read_parquet(&layout.summary()).num_rows(), 10);
+}

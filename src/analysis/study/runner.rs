@@ -227,6 +227,27 @@ pub fn run_study(
     Ok(report)
 }
 
+/// The `scenario=` directories of the dataset that no variant of the study names (left by
+/// an earlier version of the study file): they are kept, and a reader of the whole
+/// dataset sees them, so the CLI names them.
+pub fn stale_variants(study: &Study, layout: &Layout) -> Vec<String> {
+    let mut stale = std::collections::BTreeSet::new();
+    for t in TABLES {
+        let Ok(entries) = std::fs::read_dir(layout.table_root(t)) else {
+            continue;
+        };
+        for e in entries.flatten() {
+            let n = e.file_name().to_string_lossy().into_owned();
+            if let Some(v) = n.strip_prefix("scenario=") {
+                if study.variant(v).is_none() {
+                    stale.insert(v.to_string());
+                }
+            }
+        }
+    }
+    stale.into_iter().collect()
+}
+
 /// Writes `summary.parquet` from the `summary.json` of every complete variant, in the
 /// plan's order. Returns the rows.
 pub fn write_study_summary(study: &Study, layout: &Layout) -> Result<Vec<SummaryRow>> {
