@@ -127,6 +127,7 @@ fn expansion_names_sets_and_hashes() {
         .unwrap()
         .ends_with("schedule_alt.csv"));
     assert_eq!(vs[0]["input_sha256"]["blocks"].as_str().unwrap().len(), 64);
+    assert!(Path::new(vs[0]["inputs"]["blocks"].as_str().unwrap()).is_absolute());
 }
 
 /// The dataset's extraction rows and tonnes per variant, from the partitions.
@@ -136,7 +137,10 @@ fn dataset_tonnes(layout: &Layout) -> BTreeMap<String, (usize, f64)> {
     for v in entries(&root) {
         let mut rows = 0;
         let mut tonnes = 0.0;
-        for p in entries(&root.join(&v)) {
+        for p in entries(&root.join(&v))
+            .into_iter()
+            .filter(|p| p.starts_with("period="))
+        {
             let b = read_parquet(&root.join(&v).join(p).join("part-0.parquet"));
             rows += b.num_rows();
             tonnes += b
@@ -222,6 +226,12 @@ fn a_killed_study_resumes_every_variant_exactly_once() {
     for v in &study.variants {
         let h = fs::read_to_string(layout.state(&v.name).join(SUCCESS)).unwrap();
         assert_eq!(h.trim(), v.hash);
+        // Each table's partitions carry the mark too.
+        for t in ["extraction", "imz", "drawn"] {
+            let p = layout.table_root(t).join(format!("scenario={}", v.name));
+            let h = fs::read_to_string(p.join(SUCCESS)).unwrap();
+            assert_eq!(h.trim(), v.hash, "{t}");
+        }
     }
     // (d): a `_SUCCESS` of another hash is not complete.
     fs::write(layout.state(&c).join(SUCCESS), "0000\n").unwrap();

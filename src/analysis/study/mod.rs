@@ -39,6 +39,7 @@
 //!
 //! ```text
 //! DIR/dataset/<table>/study=<study>/scenario=<variant>/period=<N>/part-0.parquet
+//! DIR/dataset/<table>/study=<study>/scenario=<variant>/_SUCCESS   the hash, once all are in
 //! DIR/variants/<variant>/_SUCCESS        the variant's hash: complete
 //! DIR/variants/<variant>/summary.json    its summary row
 //! DIR/variants/<variant>/manifest.json   its run manifest (inputs, resolution, balance)
@@ -47,7 +48,9 @@
 //!
 //! for the tables extraction, imz, drawn, air_gap and surface, written by
 //! `output::dataset` exactly as `run` writes its own (`period_group=` beyond 400
-//! periods). Marker snapshots, stress and trace tables, charts and the flat tables are not
+//! periods). A reader of the whole dataset while a study runs, or after one was killed,
+//! also sees the partitions of incomplete variants: keep to the variants of
+//! `summary.parquet`, or to partitions with a `_SUCCESS`. Marker snapshots, stress and trace tables, charts and the flat tables are not
 //! written for a study's variants.
 //!
 //! # Killed at any point
@@ -59,7 +62,9 @@
 //! (no `_SUCCESS`, another hash because a table or the scenario changed, a temporary
 //! directory a killed writer left, which is removed) is run again and replaces what was
 //! there. So a study killed at any point and run again loses nothing and runs nothing
-//! twice.
+//! twice. Different variants may be written by different processes at once (their
+//! directories are disjoint); one variant must have one writer at a time (a writer
+//! removes the temporary directories its variant's killed writers left).
 //!
 //! # In parallel, here and elsewhere
 //!

@@ -114,7 +114,12 @@ impl Study {
     /// [`Study::validate`]). Every problem is returned.
     pub fn expand(file: &Path) -> Result<Study, StudyProblems> {
         let spec = StudyFile::read(file)?;
-        let dir = file.parent().unwrap_or(Path::new("."));
+        // Absolute, so that the plan's paths hold from any working directory.
+        let dir = match file.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d,
+            _ => Path::new("."),
+        };
+        let dir = &std::path::absolute(dir).unwrap_or(dir.to_path_buf());
         let mut problems = Vec::new();
         let name = spec.name.clone().unwrap_or_else(|| {
             file.file_stem()
@@ -222,7 +227,7 @@ impl Study {
                         continue;
                     }
                     // Absolute: the scenario resolves a relative path against its own folder.
-                    let path = std::path::absolute(dir.join(path)).unwrap_or(dir.join(path));
+                    let path = dir.join(path);
                     if !path.is_file() {
                         problems.push(StudyError::new(
                             file,

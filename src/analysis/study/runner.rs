@@ -90,9 +90,10 @@ fn remove_leftovers(root: &Path, name: &str) -> Result<()> {
 }
 
 /// Runs one variant into the layout unless it is complete. The order makes a kill at any
-/// point safe: the old `_SUCCESS` goes first, each table's partitions are swapped in
-/// whole (`output::dataset`), and `_SUCCESS` (with the hash) is written last, atomically,
-/// after `summary.json` and `manifest.json`. `progress` gets (periods done, periods).
+/// point safe: the old `_SUCCESS` files go first, each table's partitions are swapped in
+/// whole (`output::dataset`) and marked with a `_SUCCESS` of their own, and the variant's
+/// `_SUCCESS` (with the hash), the one that counts, is written last, atomically, after
+/// `summary.json` and `manifest.json`. `progress` gets (periods done, periods).
 pub fn run_variant(
     layout: &Layout,
     v: &Variant,
@@ -103,8 +104,14 @@ pub fn run_variant(
     }
     let state = layout.state(&v.name);
     let success = state.join(SUCCESS);
-    if success.exists() {
-        std::fs::remove_file(&success).with_context(|| success.display().to_string())?;
+    let partitions: Vec<PathBuf> = TABLES
+        .iter()
+        .map(|t| layout.table_root(t).join(format!("scenario={}", v.name)))
+        .collect();
+    for m in std::iter::once(success.clone()).chain(partitions.iter().map(|p| p.join(SUCCESS))) {
+        if m.exists() {
+            std::fs::remove_file(&m).with_context(|| m.display().to_string())?;
+        }
     }
     let loaded = v
         .load()
@@ -150,6 +157,11 @@ pub fn run_variant(
         let batch = batch.with_context(|| format!("{name} of variant {}", v.name))?;
         remove_leftovers(&root, &v.name)?;
         write_dataset(&root, &batch, &scene.periods, &hive)?;
+    }
+    // Each table's partitions marked too, for readers that look for a `_SUCCESS` beside
+    // them (Spark's convention; Parquet readers skip files named `_*`).
+    for p in partitions.iter().filter(|p| p.is_dir()) {
+        write_atomic(&p.join(SUCCESS), format!("{}\n", v.hash).as_bytes())?;
     }
     std::fs::create_dir_all(&state).with_context(|| state.display().to_string())?;
     write_atomic(
