@@ -18,7 +18,8 @@ pub struct StudyArgs {
     /// Output directory: `dataset/`, `variants/` and `summary.parquet`.
     #[arg(long, default_value = "study")]
     pub out: PathBuf,
-    /// Variants run at once (each run's parallel loops share the cores).
+    /// Variants run at once. Each run's parallel loops share the cores, and a second run
+    /// fills the serial stretches of the first (`analysis::study`, "In parallel").
     #[arg(long, default_value_t = 2, value_name = "N")]
     pub jobs: usize,
     /// Print the expanded study as JSON (name, hash, --set list, inputs, seed of every
