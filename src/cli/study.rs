@@ -89,6 +89,13 @@ pub fn study_cmd(a: StudyArgs) -> Result<ExitCode> {
         .iter()
         .filter(|v| !layout.is_complete(v))
         .count();
+    eprintln!(
+        "study {}: {} variant(s), {} to run, {} job(s)",
+        study.name,
+        study.variants.len(),
+        total,
+        a.jobs
+    );
     let bar = if terminal {
         // Periods of the variants to run; a variant's periods are known once it loads, so
         // the bar counts variants × the base scene's periods, close enough to pace it.
@@ -101,13 +108,6 @@ pub fn study_cmd(a: StudyArgs) -> Result<ExitCode> {
         indicatif::ProgressBar::hidden()
     };
     let progress = Bar { bar, terminal };
-    eprintln!(
-        "study {}: {} variant(s), {} to run, {} job(s)",
-        study.name,
-        study.variants.len(),
-        total,
-        a.jobs
-    );
     let report = run_study(&study, &layout, a.jobs, &progress)?;
     progress.bar.finish_and_clear();
     println!(
