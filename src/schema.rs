@@ -571,6 +571,31 @@ pub const SWEEP: TableSpec = TableSpec {
     extra: None,
 };
 
+/// One variant of a scenario study (`caveflow study`, `summary.parquet`).
+pub const STUDY_SUMMARY: TableSpec = TableSpec {
+    name: "study_summary",
+    description: "One variant of a scenario study: its identity, what it drew, at what grade, how much of the footprint's metal, when dilution entered, how often drawpoints fell short, and its run time (analysis::study).",
+    fields: &[
+        f("variant", Str, "-", "Variant name: the scenario= partition of the study's dataset", true, &[]),
+        f("hash", Str, "-", "Content hash of the variant (SHA-256 of the resolved scenario, the input files' SHA-256 and the seed), as in its _SUCCESS file", true, &[]),
+        f("seed", I64, "-", "Seed of the run", true, &[]),
+        f("tonnes", F64, "t", "Credited tonnes over the run", true, &[]),
+        f("scheduled_tonnes", F64, "t", "Tonnes the schedule asked for", true, &[]),
+        f("footprint_tonnes", F64, "t", "In-situ tonnes of the footprint: the block columns whose centre lies within s/sqrt(2) of a drawpoint axis (s the median distance between neighbouring drawpoints), from the lowest drawpoint up", true, &[]),
+        f("dilution_entry", F64, "t", "Mean over the drawpoints whose waste share reaches 10% of the cumulative tonnes at which it does (null when none does)", false, &[]),
+        f("diluted_drawpoints", I64, "-", "Drawpoints whose waste share reached 10%", true, &[]),
+        f("short_share", F64, "-", "Share of the scheduled (not idle) drawpoint-periods that were short", false, &[]),
+        f("periods", I64, "-", "Periods run", true, &[]),
+        f("wall_s", F64, "s", "Wall time of the engine run", true, &[]),
+    ],
+    extra: Some(ExtraColumns {
+        pattern: "<grid key> | <alternative dimension> | <grade name> | recovery_<grade name>",
+        kind: F64,
+        unit: "- | - | % | -",
+        description: "The swept value of each grid key (Float64 when every value is a number, else Utf8) and the alternative chosen in each dimension (Utf8); then the tonnage-weighted mean grade of everything drawn (%), then the metal drawn over the metal in situ in the footprint (-; above 1 when the draw reaches beyond the footprint, as it does where neighbouring ground or broken material above feeds the drawpoints)",
+    }),
+};
+
 /// Reconciliation metrics (`caveflow reconcile`).
 pub const RECONCILE_METRICS: TableSpec = TableSpec {
     name: "reconcile",
@@ -672,6 +697,7 @@ pub const ALL: &[TableSpec] = &[
     STRESS_LEVELS,
     MANIFEST,
     SWEEP,
+    STUDY_SUMMARY,
 ];
 
 /// The drawpoint file's columns in MassFlow's fixed order (`TableSpec::massflow_layout`).

@@ -4,6 +4,10 @@
 //!   the default and against a converged reference; wall time and error are tabulated
 //!   (`sweep.parquet`) and charted (error against time, with the Pareto front).
 //!
+//! - [`study`]: scenario studies: variants of one scenario (grids over any key, swapped
+//!   tables, seeds) run in parallel into one Hive-partitioned dataset, resumable, with a
+//!   summary per variant.
+//!
 //! - [`records`]: synthetic production records, from a run with a hidden "true"
 //!   calibration plus sampling noise (the demo's `data/records.csv`).
 //! - [`reconcile`]: predicted against sampled drawpoint grades (polars, lazy): matched rows
@@ -26,4 +30,5 @@ pub mod reconcile;
 pub mod records;
 #[cfg(feature = "analysis")]
 pub mod report;
+pub mod study;
 pub mod sweep;

@@ -244,7 +244,7 @@ pub const DILUTION_ENTRY_SHARE: f64 = 0.1;
 /// Per drawpoint, the cumulative tonnes at which a period's waste share first reaches
 /// [`DILUTION_ENTRY_SHARE`], interpolated between the midpoints of that period and the one
 /// before (NaN where it never does).
-fn dilution_entries(out: &RunOutput, n_dp: usize) -> Vec<f64> {
+pub(crate) fn dilution_entries(out: &RunOutput, n_dp: usize) -> Vec<f64> {
     let e = &out.extraction;
     let mut rows: Vec<usize> = (0..e.period.len()).filter(|&i| e.tonnes[i] > 0.0).collect();
     rows.sort_by_key(|&i| (e.drawpoint[i], e.period[i]));

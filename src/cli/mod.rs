@@ -19,6 +19,7 @@ use crate::schema;
 
 #[cfg(feature = "analysis")]
 mod backanalysis;
+mod study;
 
 /// caveflow: gravity flow of caved rock in block and panel caving mines (REBOP after
 /// Pierce 2010). Give it a block model, drawpoints and a draw schedule; it predicts what
@@ -49,6 +50,10 @@ pub enum Command {
     /// The speed–accuracy sweep: run one scene at a grid of resolutions around the default
     /// and a converged reference; write sweep.parquet and sweep.png (error against time).
     Sweep(SweepArgs),
+    /// Run a scenario study: the variants of one scenario (grids over any key, swapped
+    /// tables, seeds) in parallel into one Hive-partitioned dataset and summary.parquet;
+    /// complete variants are skipped. --plan prints the variants as JSON.
+    Study(study::StudyArgs),
     /// Compare a run's predictions with production records: write reconcile.parquet (bias,
     /// MAE, RMSE, correlation, tonnage-weighted error, dilution entry per drawpoint, zone
     /// and overall), reconcile_rows.parquet and report.html.
@@ -232,6 +237,7 @@ pub fn main() -> Result<ExitCode> {
         Command::Schema(a) => schema_cmd(a),
         Command::Demo(a) => demo_cmd(a),
         Command::Sweep(a) => sweep_cmd(a),
+        Command::Study(a) => study::study_cmd(a),
         #[cfg(feature = "analysis")]
         Command::Reconcile(a) => backanalysis::reconcile_cmd(a),
         #[cfg(feature = "analysis")]
@@ -243,6 +249,8 @@ pub fn main() -> Result<ExitCode> {
         Err(e)
             if e.downcast_ref::<ScenarioError>().is_some()
                 || e.downcast_ref::<UsageError>().is_some()
+                || e.downcast_ref::<crate::analysis::study::StudyProblems>()
+                    .is_some()
                 || matches!(e.downcast_ref(), Some(EngineError::Refused(_))) =>
         {
             eprintln!("error: {e:#}");

@@ -22,6 +22,7 @@ mod records;
 mod rilling;
 mod stability;
 mod stress;
+mod study;
 mod surface_cone;
 mod sweep;
 mod synthetic_records;

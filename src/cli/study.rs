@@ -1,0 +1,138 @@
+//! `caveflow study`: expand a study, run its variants (all, or one), write the summary.
+
+use std::io::IsTerminal;
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use anyhow::Result;
+use clap::Args;
+
+use crate::analysis::study::runner::{run_variant, stale_variants, Progress};
+use crate::analysis::study::{run_study, Layout, Outcome, Study};
+
+/// `caveflow study`.
+#[derive(Debug, Args)]
+pub struct StudyArgs {
+    /// The study file (TOML; see `analysis::study`).
+    pub study: PathBuf,
+    /// Output directory: `dataset/`, `variants/` and `summary.parquet`.
+    #[arg(long, default_value = "study")]
+    pub out: PathBuf,
+    /// Variants run at once. Each run's parallel loops share the cores, and a second run
+    /// fills the serial stretches of the first (`analysis::study`, "In parallel").
+    #[arg(long, default_value_t = 2, value_name = "N")]
+    pub jobs: usize,
+    /// Print the expanded study as JSON (name, hash, --set list, inputs, seed of every
+    /// variant) and run nothing.
+    #[arg(long)]
+    pub plan: bool,
+    /// Run only this variant into the layout (what a cluster task calls); no summary.
+    #[arg(long, value_name = "NAME", conflicts_with = "plan")]
+    pub variant: Option<String>,
+}
+
+/// The progress bar (on a terminal only) and one line per finished variant.
+struct Bar {
+    bar: indicatif::ProgressBar,
+    terminal: bool,
+}
+
+impl Progress for Bar {
+    fn periods(&self, n: u64) {
+        self.bar.inc(n);
+    }
+    fn finished(&self, name: &str, outcome: Option<&Outcome>) {
+        let line = match outcome {
+            Some(Outcome::Skipped) => format!("{name}: complete, skipped"),
+            Some(Outcome::Ran(s)) => format!("{name}: ran in {s:.1} s"),
+            None => format!("{name}: failed"),
+        };
+        if self.terminal {
+            self.bar.println(line);
+        } else {
+            eprintln!("{line}");
+        }
+    }
+}
+
+/// Runs `caveflow study`.
+pub fn study_cmd(a: StudyArgs) -> Result<ExitCode> {
+    let study = Study::expand(&a.study)?;
+    if a.jobs == 0 {
+        return Err(super::UsageError("--jobs must be at least 1".into()).into());
+    }
+    study.validate(a.variant.as_deref())?;
+    if a.plan {
+        println!("{}", serde_json::to_string_pretty(&study.plan_json())?);
+        return Ok(ExitCode::SUCCESS);
+    }
+    let layout = Layout::new(&a.out, &study);
+    if let Some(name) = &a.variant {
+        let Some(v) = study.variant(name) else {
+            let names: Vec<_> = study.variants.iter().map(|v| v.name.as_str()).collect();
+            return Err(super::UsageError(format!(
+                "no variant `{name}` in {}; variants: {}",
+                a.study.display(),
+                names.join(", ")
+            ))
+            .into());
+        };
+        match run_variant(&layout, v, &mut |_, _| {})? {
+            Outcome::Skipped => println!("{name}: complete ({}), skipped", v.hash),
+            Outcome::Ran(s) => println!("{name}: ran in {s:.1} s ({})", v.hash),
+        }
+        return Ok(ExitCode::SUCCESS);
+    }
+    let terminal = std::io::stderr().is_terminal();
+    let total = study
+        .variants
+        .iter()
+        .filter(|v| !layout.is_complete(v))
+        .count();
+    eprintln!(
+        "study {}: {} variant(s), {} to run, {} job(s)",
+        study.name,
+        study.variants.len(),
+        total,
+        a.jobs
+    );
+    let bar = if terminal {
+        // Periods of the variants to run; a variant's periods are known once it loads, so
+        // the bar counts variants × the base scene's periods, close enough to pace it.
+        let periods = study
+            .variants
+            .first()
+            .map_or(0, |v| v.load().map_or(0, |l| l.scene.periods.len() as u64));
+        super::progress(total as u64 * periods, "periods")
+    } else {
+        indicatif::ProgressBar::hidden()
+    };
+    let progress = Bar { bar, terminal };
+    let report = run_study(&study, &layout, a.jobs, &progress)?;
+    progress.bar.finish_and_clear();
+    println!(
+        "{} ran, {} complete already, {} failed; wrote {} ({} rows) and {}",
+        report.ran.len(),
+        report.skipped.len(),
+        report.failed.len(),
+        layout.summary().display(),
+        report.rows.len(),
+        layout.dir.join("dataset").display()
+    );
+    let stale = stale_variants(&study, &layout);
+    if !stale.is_empty() {
+        eprintln!(
+            "warning: {} holds variants this study no longer has (kept; remove them by hand if unwanted): {}",
+            layout.dir.join("dataset").display(),
+            stale.join(", ")
+        );
+    }
+    if report.failed.is_empty() {
+        Ok(ExitCode::SUCCESS)
+    } else {
+        for (name, why) in &report.failed {
+            eprintln!("error: variant {name}: {why}");
+        }
+        Ok(ExitCode::from(2))
+    }
+}
