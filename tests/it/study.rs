@@ -1,10 +1,9 @@
 //! Integration tests: scenario studies (`analysis::study`, `caveflow study`) on the tiny
-//! two-drawpoint box of `dataset::tiny` (a run takes well under a second).
+//! two-drawpoint box of `fixtures::tiny` (a run takes well under a second).
 
 use std::collections::BTreeMap;
 use std::fs;
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 use arrow::array::{Array, AsArray};
 use arrow::datatypes::Float64Type;
@@ -13,8 +12,7 @@ use caveflow::analysis::study::{run_study, Layout, Outcome, Study, StudyProblems
 use caveflow::model::Scenario;
 use caveflow::output::inputs::write_scene;
 
-use crate::dataset::tiny;
-use crate::output::{entries, read_parquet};
+use crate::fixtures::{caveflow, entries, read_parquet, tiny};
 
 struct Quiet;
 impl Progress for Quiet {
@@ -387,11 +385,8 @@ fn bad_studies_are_refused_with_file_key_and_rule() {
     assert_eq!(e.0.len(), 2, "{e}");
 }
 
-fn caveflow(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_caveflow"))
-        .args(args)
-        .output()
-        .unwrap()
+fn cli(args: &[&str]) -> std::process::Output {
+    caveflow().args(args).output().unwrap()
 }
 
 #[test]
@@ -406,7 +401,7 @@ fn cli_plan_variant_and_study_share_the_layout() {
     let out = tmp.path().join("out");
     let o = out.to_str().unwrap();
     // --plan: the expansion as JSON, nothing written.
-    let r = caveflow(&["study", "--plan", study]);
+    let r = cli(&["study", "--plan", study]);
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
     let plan: serde_json::Value = serde_json::from_slice(&r.stdout).unwrap();
     let names: Vec<&str> = plan["variants"]
@@ -418,14 +413,14 @@ fn cli_plan_variant_and_study_share_the_layout() {
     assert_eq!(names, ["uniform-0.8", "uniform-1.0"]);
     assert!(!out.exists());
     // --variant: one variant into the layout, as a cluster task would.
-    let r = caveflow(&["study", study, "--out", o, "--variant", "uniform-1.0"]);
+    let r = cli(&["study", study, "--out", o, "--variant", "uniform-1.0"]);
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
     let hash = plan["variants"][1]["hash"].as_str().unwrap();
     let success = out.join("variants/uniform-1.0").join(SUCCESS);
     assert_eq!(fs::read_to_string(&success).unwrap().trim(), hash);
     assert!(!out.join("variants/uniform-0.8").exists());
     // The whole study: the other variant runs, that one is skipped, the summary has both.
-    let r = caveflow(&["study", study, "--out", o, "--jobs", "1"]);
+    let r = cli(&["study", study, "--out", o, "--jobs", "1"]);
     let stdout = String::from_utf8_lossy(&r.stdout);
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
     assert!(
@@ -434,12 +429,12 @@ fn cli_plan_variant_and_study_share_the_layout() {
     );
     assert_eq!(read_parquet(&out.join("summary.parquet")).num_rows(), 2);
     // An unknown variant, and a bad study: exit 1, with the rule; nothing written.
-    let r = caveflow(&["study", study, "--out", o, "--variant", "nope"]);
+    let r = cli(&["study", study, "--out", o, "--variant", "nope"]);
     assert_eq!(r.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&r.stderr).contains("no variant `nope`"));
     let bad = study_file(tmp.path(), "[grid]\n\"flow.q\" = []\n");
     let fresh = tmp.path().join("fresh");
-    let r = caveflow(&[
+    let r = cli(&[
         "study",
         bad.to_str().unwrap(),
         "--out",
@@ -474,7 +469,7 @@ fn the_cli_killed_mid_study_and_run_again_completes_every_variant_once() {
             .count()
     };
     // Killed (SIGKILL) as soon as the first variant is complete.
-    let mut child = Command::new(env!("CARGO_BIN_EXE_caveflow"))
+    let mut child = caveflow()
         .args([
             "study",
             path.to_str().unwrap(),
@@ -499,7 +494,7 @@ fn the_cli_killed_mid_study_and_run_again_completes_every_variant_once() {
         "killed mid-study: {before} of 10 complete"
     );
     // Run again: the rest run, once each; the complete ones are skipped.
-    let r = caveflow(&[
+    let r = cli(&[
         "study",
         path.to_str().unwrap(),
         "--out",
