@@ -444,7 +444,13 @@ fn run(a: RunArgs) -> Result<ExitCode> {
     bar.finish_and_clear();
     let command = std::env::args().collect::<Vec<_>>().join(" ");
     let charts = if sc.outputs.charts {
-        output::figures::write_run_charts(dir, scene, &out, None)?
+        output::figures::write_run_charts(
+            dir,
+            scene,
+            &out,
+            None,
+            &scene.moments(&sc.outputs.section_periods),
+        )?
     } else {
         Vec::new()
     };

@@ -162,6 +162,9 @@ pub struct Engine<'a> {
     block_mass: Vec<f64>,
     /// The trace points (`trace`; none unless [`Engine::with_trace`]).
     trace: trace::Trace,
+    /// The periods whose free surface the charts' sections through time need
+    /// (`Scene::moments`).
+    moments: Vec<i64>,
 }
 
 impl<'a> Engine<'a> {
@@ -271,6 +274,7 @@ impl<'a> Engine<'a> {
             block_mass: vec![0.0; bm.len()],
             cadence,
             trace: trace::Trace::default(),
+            moments: scene.moments(&scenario.outputs.section_periods),
         }
     }
 
@@ -684,21 +688,6 @@ impl<'a> Engine<'a> {
         self.all_moved = true;
     }
 
-    /// Appends the free-surface height field to the surface table.
-    fn record_surface(&mut self, period: i64) {
-        let h = self.free_surface(period);
-        let lat = &self.lattice;
-        let t = &mut self.out.surface;
-        for (c, &z) in h.iter().enumerate() {
-            if z.is_finite() {
-                t.period.push(period);
-                t.x.push(lat.origin[0] + ((c % lat.n[0]) as f64 + 0.5) * lat.s);
-                t.y.push(lat.origin[1] + ((c / lat.n[0]) as f64 + 0.5) * lat.s);
-                t.z.push(z);
-            }
-        }
-    }
-
     /// Free-surface height of every lattice column (i + n_x j) now, m (`rilling::surface`):
     /// the top of the highest marker, or of the highest site never engulfed.
     pub fn free_surface(&self, period: i64) -> Vec<f64> {
@@ -894,6 +883,7 @@ impl<'a> Engine<'a> {
         let last = p + 1 == scene.periods.len();
         let surface = &self.scenario.outputs.surface_periods;
         let snapshot = &self.scenario.outputs.marker_periods;
+        let moment = self.moments.contains(&period);
         if last || surface.contains(&period) || snapshot.contains(&period) {
             // Positions are read exactly: every marker up to date (`engine::cadence`),
             // before the period's tallies are written.
@@ -983,7 +973,11 @@ impl<'a> Engine<'a> {
         self.trace.record(period, &mut self.out.trace);
         let wanted = &self.scenario.outputs.surface_periods;
         if wanted.contains(&period) || (wanted.is_empty() && last) {
-            self.record_surface(period);
+            let h = self.free_surface(period);
+            surface_rows(&self.lattice, period, &h, &mut self.out.surface);
+        } else if moment {
+            let h = self.free_surface(period);
+            surface_rows(&self.lattice, period, &h, &mut self.out.moment_surface);
         }
         let wanted = &self.scenario.outputs.marker_periods;
         if wanted.contains(&period) || (wanted.is_empty() && last) {
@@ -1227,6 +1221,19 @@ fn reached(mk: &Markers, k: u32, grids: &[ImzGrid]) -> bool {
 /// marker spacing when coarser.
 fn grid_cell(bm: &crate::model::BlockModel, spacing: f64) -> f64 {
     bm.size[0].min(bm.size[1]).max(spacing)
+}
+
+/// Appends a free-surface height field (`Engine::free_surface`) to a surface table, one row
+/// per lattice column that has a surface.
+fn surface_rows(lat: &Lattice, period: i64, h: &[f64], t: &mut SurfaceTable) {
+    for (c, &z) in h.iter().enumerate() {
+        if z.is_finite() {
+            t.period.push(period);
+            t.x.push(lat.origin[0] + ((c % lat.n[0]) as f64 + 0.5) * lat.s);
+            t.y.push(lat.origin[1] + ((c / lat.n[0]) as f64 + 0.5) * lat.s);
+            t.z.push(z);
+        }
+    }
 }
 
 /// Which blocks are waste under the scenario's dilution rule.

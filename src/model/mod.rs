@@ -42,3 +42,42 @@ impl Scene {
         self.schedule.tonnes.truncate(n * nd);
     }
 }
+
+/// Shares of the scheduled tonnes at which the charts show the draw by default: about a
+/// quarter, a half and three quarters of the way, then the end.
+pub const MOMENT_SHARES: [f64; 3] = [0.25, 0.5, 0.75];
+
+impl Scene {
+    /// The periods at whose end the charts show the draw (sections through time): `chosen`
+    /// where given (`outputs.section_periods`; periods the schedule lacks are left out), else
+    /// the first period by whose end the scene has scheduled [`MOMENT_SHARES`] of its tonnes,
+    /// and the last period. Ascending, without repeats.
+    pub fn moments(&self, chosen: &[i64]) -> Vec<i64> {
+        let ids = &self.periods.id;
+        let mut out: Vec<i64> = if chosen.is_empty() {
+            let per: Vec<f64> = (0..ids.len())
+                .map(|p| self.schedule.period(p).iter().sum())
+                .collect();
+            let total: f64 = per.iter().sum();
+            let mut cum = 0.0;
+            let mut next = MOMENT_SHARES.iter().peekable();
+            let mut at = Vec::new();
+            for (p, t) in per.iter().enumerate() {
+                cum += t;
+                while next
+                    .next_if(|&&f| total > 0.0 && cum >= f * total)
+                    .is_some()
+                {
+                    at.push(ids[p]);
+                }
+            }
+            at.extend(ids.last());
+            at
+        } else {
+            chosen.iter().copied().filter(|p| ids.contains(p)).collect()
+        };
+        out.sort_unstable();
+        out.dedup();
+        out
+    }
+}

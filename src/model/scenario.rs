@@ -213,6 +213,10 @@ pub struct Outputs {
     pub fines_cutoff: f64,
     /// Periods at whose end the free-surface height field is written (empty: the last).
     pub surface_periods: Vec<i64>,
+    /// Periods at whose end the charts draw the sections (sections through time). Empty:
+    /// about a quarter, a half and three quarters of the scheduled tonnes, and the last
+    /// period (`Scene::moments`).
+    pub section_periods: Vec<i64>,
     /// Also write extraction, imz, drawn, air_gap and surface as Hive-partitioned Parquet
     /// datasets under `<dir>/dataset/<table>/scenario=<name>/period=<N>/` for BI tools
     /// (`output::dataset`). Default true: BI tools read them as they are. They hold the
@@ -240,6 +244,7 @@ impl Default for Outputs {
             charts: true,
             fines_cutoff: 0.01,
             surface_periods: Vec::new(),
+            section_periods: Vec::new(),
             hive: true,
             hive_periods_per_partition: 0,
             scenario_name: None,

@@ -6,7 +6,11 @@
 //!
 //! ```text
 //! <dir>/charts/section_<k>.png   one per row of drawpoints (at most MAX_SECTIONS), k = 1, 2, …
-//!                                in order of increasing Northing
+//!                                in order of increasing Northing, at the end of the run
+//! <dir>/charts/section_<k>_p<N>.png
+//!                                the same at the end of period N, for each earlier moment
+//!                                of the draw (outputs.section_periods; by default a quarter,
+//!                                a half and three quarters of the scheduled tonnes)
 //! <dir>/charts/grade_<grade>.png predicted grade of the first grade column against
 //!                                cumulative tonnes, one panel per drawpoint
 //!                                (grade_<grade>-<k>.png when the panels fill several pages)
@@ -34,7 +38,7 @@ use super::charts::{
     fmt_mass, grade_tonnage_chart, iez_outline, imz_outline, section_chart, ChartError,
     GradeSeries, Section,
 };
-use crate::engine::result::{MarkerSnapshot, MarkerState, RunOutput};
+use crate::engine::result::{MarkerSnapshot, MarkerState, RunOutput, SurfaceTable};
 use crate::model::block_model::NO_BLOCK;
 use crate::model::{BlockModel, Scene};
 
@@ -50,9 +54,11 @@ const TARGET_LAYERS: f64 = 30.0;
 /// written, sections first.
 ///
 /// - **Drawdown sections** ([`run_sections`]): one vertical section along x through each row
-///   of drawpoints, at the end of the last marker snapshot in `run.snapshots`, with the
-///   deformed layers every `layer_spacing` m (None: [`default_layer_spacing`]), the IMZ and
-///   IEZ outlines of the row's drawpoints and their names with the mass drawn.
+///   of drawpoints at the end of each of `moments` (sections through time; the engine
+///   writes the free surface at them, `Scene::moments`), with the deformed layers every
+///   `layer_spacing` m (None: [`default_layer_spacing`]) where a marker snapshot was taken,
+///   the IMZ and IEZ outlines of the row's drawpoints, the free surface, the air gap, the
+///   uncaved ground and the drawpoints' names with the mass drawn by then.
 /// - **Grade against cumulative tonnes** ([`grade_series`]) of the first grade column of the
 ///   block model, with the uniform-drawdown block grade dashed; nothing when the block model
 ///   has no grade column or no drawpoint drew anything.
@@ -64,6 +70,7 @@ pub fn write_run_charts(
     scene: &Scene,
     run: &RunOutput,
     layer_spacing: Option<f64>,
+    moments: &[i64],
 ) -> Result<Vec<PathBuf>, ChartError> {
     let out = dir.join("charts");
     std::fs::create_dir_all(&out).map_err(|source| ChartError::Io {
@@ -79,21 +86,27 @@ pub fn write_run_charts(
             .position(|&id| id == p)
             .map(|i| scene.periods.name[i].clone())
     };
-    for (k, (section, y, period)) in run_sections(scene, run, layer_spacing)
-        .into_iter()
-        .enumerate()
-    {
-        let when = match period {
-            Some(p) => match period_name(p) {
-                Some(name) if name != p.to_string() => format!("end of period {p} ({name})"),
-                _ => format!("end of period {p}"),
-            },
-            None => "no marker snapshot".to_string(),
+    let last = moments.last().copied();
+    for &period in moments {
+        let when = match period_name(period) {
+            Some(name) if name != period.to_string() => {
+                format!("end of period {period} ({name})")
+            }
+            _ => format!("end of period {period}"),
         };
-        let title = format!("Drawdown at Northing {} m, {when}", fmt_coord(y));
-        let path = out.join(format!("section_{}.png", k + 1));
-        section_chart(&path, &section, &title)?;
-        written.push(path);
+        for (k, (section, y)) in run_sections(scene, run, layer_spacing, period)
+            .into_iter()
+            .enumerate()
+        {
+            let title = format!("Drawdown at Northing {} m, {when}", fmt_coord(y));
+            let path = if Some(period) == last {
+                out.join(format!("section_{}.png", k + 1))
+            } else {
+                out.join(format!("section_{}_p{period}.png", k + 1))
+            };
+            section_chart(&path, &section, &title)?;
+            written.push(path);
+        }
     }
     if let Some(name) = scene.blocks.grade_names.first() {
         let series = grade_series(scene, run, 0);
@@ -172,19 +185,20 @@ pub fn drawpoint_rows(scene: &Scene) -> Vec<Vec<usize>> {
     rows
 }
 
-/// The drawdown sections of a run, with the Northing of each section plane and the period of
-/// the marker snapshot drawn (None without a snapshot).
+/// The drawdown sections of a run at the end of `period`, with the Northing of each
+/// ([`drawdown_section`]).
 ///
 /// One section per row of drawpoints ([`drawpoint_rows`]), through the mean Northing of the
-/// row. With more than [`MAX_SECTIONS`] rows, only the rows with the most tonnes drawn (sum
-/// of the final cumulative tonnes of their drawpoints) are kept, still in order of Northing.
+/// row. With more than [`MAX_SECTIONS`] rows, only the rows with the most tonnes drawn over
+/// the run are kept (the same rows at every moment), still in order of Northing.
 pub fn run_sections(
     scene: &Scene,
     run: &RunOutput,
     layer_spacing: Option<f64>,
-) -> Vec<(Section, f64, Option<i64>)> {
+    period: i64,
+) -> Vec<(Section, f64)> {
     let dp = &scene.drawpoints;
-    let drawn = final_tonnes(run, dp.len());
+    let drawn = tonnes_by(run, dp.len(), i64::MAX);
     let mut rows = drawpoint_rows(scene);
     if rows.len() > MAX_SECTIONS {
         let tonnes = |row: &Vec<usize>| row.iter().map(|&d| drawn[d]).sum::<f64>();
@@ -198,34 +212,39 @@ pub fn run_sections(
         ranked.sort_unstable();
         rows = ranked.into_iter().map(|i| rows[i].clone()).collect();
     }
-    let snapshot = run.snapshots.iter().max_by_key(|s| s.period);
     rows.iter()
         .map(|row| {
             let y = row.iter().map(|&d| dp.y[d]).sum::<f64>() / row.len() as f64;
-            let section = drawdown_section(scene, run, row, y, layer_spacing);
-            (section, y, snapshot.map(|s| s.period))
+            let section = drawdown_section(scene, run, row, y, layer_spacing, period);
+            (section, y)
         })
         .collect()
 }
 
-/// One drawdown section along x (Easting) through the Northing `y`, for the drawpoints `row`.
+/// One drawdown section along x (Easting) through the Northing `y`, for the drawpoints `row`,
+/// at the end of `period`.
 ///
-/// - **Layers.** From the last marker snapshot (largest period) in `run.snapshots`. The
-///   section is the lattice row of markers nearest to `y` (its origins lie within half a
-///   marker spacing of `y`; when `y` falls exactly between two rows the southern one is
-///   used). Layers are the lattice levels nearest to the model base + (k − ½) × `layer_spacing`
-///   (k = 1, 2, … up to the model top, so each is the middle of a band `layer_spacing`
-///   thick; None: [`default_layer_spacing`]). Each layer is
-///   a polyline along the lattice columns in order of origin Easting: a moving marker at its
-///   current (x, z), a column never mobilised at its in-situ (x, z), and a drawn marker as a
-///   break. Runs of in-situ columns are reduced to their two ends.
-/// - **IMZ outlines.** The disks of the last period in `run.imz` of each drawpoint of `row`,
-///   through [`imz_outline`] about the drawpoint's Easting.
-/// - **IEZ outlines.** The origins of the markers each drawpoint of `row` drew
-///   (`run.drawn`) that lie on the section's lattice row, so the outline is the IEZ cut by
-///   the section plane (not the projection of the whole IEZ), consistent with the breaks in
-///   the layers; binned every marker spacing in elevation by [`iez_outline`].
-/// - **Drawpoints.** Name and cumulative mass drawn ([`fmt_mass`]) from `run.extraction`.
+/// - **Layers.** From the marker snapshot of `period` in `run.snapshots`, if there is one
+///   (`outputs.marker_periods`; the last period by default). The section is the lattice row
+///   of markers nearest to `y` (its origins lie within half a marker spacing of `y`; when `y`
+///   falls exactly between two rows the southern one is used). Layers are the lattice levels
+///   nearest to the model base + (k − ½) × `layer_spacing` (k = 1, 2, … up to the model top,
+///   so each is the middle of a band `layer_spacing` thick; None: [`default_layer_spacing`]).
+///   Each layer is a polyline along the lattice columns in order of origin Easting: a moving
+///   marker at its current (x, z), a column never mobilised at its in-situ (x, z), and a
+///   drawn marker as a break. Runs of in-situ columns are reduced to their two ends.
+/// - **Free surface** of `period` (`run.surface`, or `run.moment_surface`) along the
+///   lattice row nearest the section, the ground still **uncaved** at the end of `period`,
+///   and the **air gap** of `period` (`run.air_gap`): per block column on the section, the
+///   air from the top of its highest caved stretch down by the gap.
+/// - **IMZ outlines.** The disks of `period` in `run.imz` of each drawpoint of `row`,
+///   through [`imz_outline`] about the drawpoint's Easting, cut at the free surface: above
+///   it the disks hold air (void that left the top of the IMZ), not moving rock.
+/// - **IEZ outlines.** The origins of the markers each drawpoint of `row` drew by the end of
+///   `period` (`run.drawn`) that lie on the section's lattice row, so the outline is the IEZ
+///   cut by the section plane (not the projection of the whole IEZ), consistent with the
+///   breaks in the layers; binned every marker spacing in elevation by [`iez_outline`].
+/// - **Drawpoints.** Name and cumulative mass drawn by the end of `period` ([`fmt_mass`]).
 ///
 /// The marker spacing is `run.resolution.marker_spacing` when set, else inferred from the
 /// distinct origin coordinates of the snapshot and the drawn table (their smallest gap).
@@ -236,6 +255,7 @@ pub fn drawdown_section(
     row: &[usize],
     y: f64,
     layer_spacing: Option<f64>,
+    period: i64,
 ) -> Section {
     let bm = &scene.blocks;
     let dp = &scene.drawpoints;
@@ -246,8 +266,10 @@ pub fn drawdown_section(
         z_range: (bm.origin[2], max[2]),
         ..Section::default()
     };
-    let snapshot = run.snapshots.iter().max_by_key(|s| s.period);
-    let lattice = marker_spacing(run, snapshot).map(|s| SectionLattice::new(bm, run, snapshot, s));
+    let snapshot = run.snapshots.iter().find(|s| s.period == period);
+    let any_snapshot = snapshot.or_else(|| run.snapshots.iter().max_by_key(|s| s.period));
+    let lattice =
+        marker_spacing(run, any_snapshot).map(|s| SectionLattice::new(bm, run, any_snapshot, s));
 
     if let (Some(lat), Some(snap)) = (&lattice, snapshot) {
         let spacing = layer_spacing
@@ -256,65 +278,93 @@ pub fn drawdown_section(
         section.layers = layers(lat, snap, y, spacing);
     }
 
-    // The free surface of the last period it was written for, along the lattice row
-    // nearest the section, and the ground still uncaved at the end of the run.
-    let sf = &run.surface;
-    if let Some(last) = sf.period.iter().copied().max() {
-        let rows: Vec<usize> = (0..sf.z.len()).filter(|&k| sf.period[k] == last).collect();
-        let nearest = rows
-            .iter()
-            .map(|&k| (sf.y[k] - y).abs())
-            .fold(f64::INFINITY, f64::min);
-        let mut line: Vec<(f64, f64)> = rows
-            .iter()
-            .filter(|&&k| (sf.y[k] - y).abs() <= nearest + 1e-9)
-            .map(|&k| (sf.x[k], sf.z[k]))
-            .collect();
-        line.sort_by(|a, b| a.0.total_cmp(&b.0));
-        section.surface = line;
+    // The free surface of the period along the lattice row nearest the section (the
+    // surface table's where it holds the period, else the one kept for the charts).
+    let at = |t: &SurfaceTable| (0..t.z.len()).filter(|&k| t.period[k] == period).collect();
+    let mut sf = &run.surface;
+    let mut rows: Vec<usize> = at(sf);
+    if rows.is_empty() {
+        sf = &run.moment_surface;
+        rows = at(sf);
     }
-    if let Some(&end) = scene.periods.id.last() {
-        if let Some([_, j, _]) = bm.cell([bm.origin[0], y, bm.origin[2]]) {
-            for k in 0..bm.dims[2] {
-                for i in 0..bm.dims[0] {
-                    let b = bm.index[i + bm.dims[0] * (j + bm.dims[1] * k)];
-                    if b != crate::model::block_model::NO_BLOCK && !bm.flowable(b as usize, end) {
-                        let x0 = bm.origin[0] + i as f64 * bm.size[0];
-                        let z0 = bm.origin[2] + k as f64 * bm.size[2];
-                        section
-                            .uncaved
-                            .push(((x0, z0), (x0 + bm.size[0], z0 + bm.size[2])));
-                    }
+    let nearest = rows
+        .iter()
+        .map(|&k| (sf.y[k] - y).abs())
+        .fold(f64::INFINITY, f64::min);
+    let mut line: Vec<(f64, f64)> = rows
+        .iter()
+        .filter(|&&k| (sf.y[k] - y).abs() <= nearest + 1e-9)
+        .map(|&k| (sf.x[k], sf.z[k]))
+        .collect();
+    line.sort_by(|a, b| a.0.total_cmp(&b.0));
+    section.surface = line;
+    if let Some([_, j, _]) = bm.cell([bm.origin[0], y, bm.origin[2]]) {
+        let block = |i: usize, k: usize| {
+            let b = bm.index[i + bm.dims[0] * (j + bm.dims[1] * k)];
+            (b != crate::model::block_model::NO_BLOCK).then_some(b as usize)
+        };
+        for k in 0..bm.dims[2] {
+            for i in 0..bm.dims[0] {
+                if block(i, k).is_some_and(|b| !bm.flowable(b, period)) {
+                    let x0 = bm.origin[0] + i as f64 * bm.size[0];
+                    let z0 = bm.origin[2] + k as f64 * bm.size[2];
+                    section
+                        .uncaved
+                        .push(((x0, z0), (x0 + bm.size[0], z0 + bm.size[2])));
                 }
+            }
+        }
+        // The air gap of each block column on the section, from the top of its highest
+        // caved stretch down (as `engine::air_gap` counts it).
+        let yc = bm.origin[1] + (j as f64 + 0.5) * bm.size[1];
+        let t = &run.air_gap;
+        for k in (0..t.air_gap.len()).filter(|&k| t.period[k] == period) {
+            if (t.y[k] - yc).abs() > 1e-6 * bm.size[1] {
+                continue;
+            }
+            let Some([i, _, _]) = bm.cell([t.x[k], yc, bm.origin[2]]) else {
+                continue;
+            };
+            let top = (0..bm.dims[2])
+                .rev()
+                .find(|&k| block(i, k).is_some_and(|b| bm.flowable(b, period)))
+                .map(|k| bm.origin[2] + (k + 1) as f64 * bm.size[2]);
+            if let Some(top) = top {
+                let x0 = bm.origin[0] + i as f64 * bm.size[0];
+                section
+                    .air
+                    .push(((x0, top - t.air_gap[k]), (x0 + bm.size[0], top)));
             }
         }
     }
 
-    // IMZ disks of the last period in the table.
     let imz = &run.imz;
-    let last = imz.period.iter().copied().max();
-    let drawn = final_tonnes(run, dp.len());
+    let drawn = tonnes_by(run, dp.len(), period);
     for &d in row {
-        if let Some(last) = last {
-            let disks: Vec<(f64, f64, f64)> = (0..imz.period.len())
-                .filter(|&i| imz.period[i] == last && imz.drawpoint[i] as usize == d)
-                .map(|i| (imz.z_base[i], imz.z_top[i], imz.radius[i]))
-                .collect();
-            // A disk may be wider than the ground it covers (it spans every flowable
-            // point of its level, see `engine::imz`); the section shows it within the model.
-            let outline: Vec<(f64, f64)> = imz_outline(&disks, dp.x[d])
-                .into_iter()
-                .map(|(x, z)| (x.clamp(bm.origin[0], max[0]), z))
-                .collect();
-            if !outline.is_empty() {
-                section.imz.push(outline);
-            }
+        let disks: Vec<(f64, f64, f64)> = (0..imz.period.len())
+            .filter(|&i| imz.period[i] == period && imz.drawpoint[i] as usize == d)
+            .map(|i| (imz.z_base[i], imz.z_top[i], imz.radius[i]))
+            .collect();
+        // A disk may be wider than the ground it covers (it spans every flowable point of
+        // its level, see `engine::imz`); the section shows it within the model, and below
+        // the free surface.
+        let outline: Vec<(f64, f64)> = imz_outline(&disks, dp.x[d])
+            .into_iter()
+            .map(|(x, z)| (x.clamp(bm.origin[0], max[0]), z))
+            .collect();
+        let outline = below_surface(&outline, &section.surface);
+        if outline.iter().any(|p| p.0.is_finite()) {
+            section.imz.push(outline);
         }
         if let Some(lat) = &lattice {
             let j = lat.index(1, y);
             let t = &run.drawn;
             let points: Vec<(f64, f64)> = (0..t.drawpoint.len())
-                .filter(|&i| t.drawpoint[i] as usize == d && lat.index(1, t.origin_y[i]) == j)
+                .filter(|&i| {
+                    t.drawpoint[i] as usize == d
+                        && t.period[i] <= period
+                        && lat.index(1, t.origin_y[i]) == j
+                })
                 .map(|i| (t.origin_x[i], t.origin_z[i]))
                 .collect();
             // The outline is symmetric about the axis; material rilled in from one side
@@ -334,6 +384,103 @@ pub fn drawdown_section(
         ));
     }
     section
+}
+
+/// The free surface's elevation at `x` on a section (linear between its points, flat
+/// beyond its ends); None where it has no finite point.
+pub fn surface_at(surface: &[(f64, f64)], x: f64) -> Option<f64> {
+    if !x.is_finite() {
+        return None;
+    }
+    let pts: Vec<(f64, f64)> = surface
+        .iter()
+        .copied()
+        .filter(|p| p.0.is_finite() && p.1.is_finite())
+        .collect();
+    let (first, last) = (pts.first()?, pts.last()?);
+    if x <= first.0 {
+        return Some(first.1);
+    }
+    if x >= last.0 {
+        return Some(last.1);
+    }
+    let i = pts.partition_point(|p| p.0 <= x);
+    let (a, b) = (pts[i - 1], pts[i]);
+    Some(if b.0 > a.0 {
+        a.1 + (b.1 - a.1) * (x - a.0) / (b.0 - a.0)
+    } else {
+        a.1.min(b.1)
+    })
+}
+
+/// The parts of a polyline at or below the free surface `surface` (as [`surface_at`] reads
+/// it), broken by a non-finite point where it rises above: each segment is split where it
+/// crosses the surface (between two of the surface's points both are straight, so the
+/// crossing is exact). Without a surface the line is kept whole.
+pub fn below_surface(line: &[(f64, f64)], surface: &[(f64, f64)]) -> Vec<(f64, f64)> {
+    let Some(first) = surface.iter().find(|p| p.0.is_finite() && p.1.is_finite()) else {
+        return line.to_vec();
+    };
+    let s = |x: f64| surface_at(surface, x).unwrap_or(first.1);
+    let lerp =
+        |a: (f64, f64), b: (f64, f64), t: f64| (a.0 + (b.0 - a.0) * t, a.1 + (b.1 - a.1) * t);
+    let mut out: Vec<(f64, f64)> = Vec::new();
+    let add = |out: &mut Vec<(f64, f64)>, p: (f64, f64)| {
+        if out.last() != Some(&p) {
+            out.push(p);
+        }
+    };
+    let cut = |out: &mut Vec<(f64, f64)>| {
+        if out.last().is_some_and(|p| p.0.is_finite()) {
+            out.push((f64::NAN, f64::NAN));
+        }
+    };
+    for w in line.windows(2) {
+        let (a, b) = (w[0], w[1]);
+        if !(a.0.is_finite() && a.1.is_finite() && b.0.is_finite() && b.1.is_finite()) {
+            cut(&mut out);
+            continue;
+        }
+        // Pieces between the surface's points that fall inside the segment's span.
+        let mut ts = vec![0.0, 1.0];
+        if a.0 != b.0 {
+            let (lo, hi) = (a.0.min(b.0), a.0.max(b.0));
+            ts.extend(
+                surface
+                    .iter()
+                    .filter(|p| p.0 > lo && p.0 < hi)
+                    .map(|p| (p.0 - a.0) / (b.0 - a.0)),
+            );
+            ts.sort_by(f64::total_cmp);
+        }
+        for t in ts.windows(2) {
+            let (p, q) = (lerp(a, b, t[0]), lerp(a, b, t[1]));
+            let (dp, dq) = (p.1 - s(p.0), q.1 - s(q.0));
+            match (dp <= 0.0, dq <= 0.0) {
+                (true, true) => {
+                    add(&mut out, p);
+                    add(&mut out, q);
+                }
+                (true, false) => {
+                    add(&mut out, p);
+                    let c = lerp(p, q, dp / (dp - dq));
+                    add(&mut out, (c.0, s(c.0).min(c.1)));
+                    cut(&mut out);
+                }
+                (false, true) => {
+                    cut(&mut out);
+                    let c = lerp(p, q, dp / (dp - dq));
+                    add(&mut out, (c.0, s(c.0).min(c.1)));
+                    add(&mut out, q);
+                }
+                (false, false) => cut(&mut out),
+            }
+        }
+    }
+    if out.last().is_some_and(|p| !p.0.is_finite()) {
+        out.pop();
+    }
+    out
 }
 
 /// The regular marker lattice as far as a section needs it: spacing `s` and, per axis, the
@@ -505,14 +652,15 @@ fn layer_line(lat: &SectionLattice, sites: &HashMap<(i64, i64), Site>, kz: i64) 
     line
 }
 
-/// Final cumulative credited tonnes per drawpoint (0 for drawpoints without rows).
-fn final_tonnes(run: &RunOutput, n: usize) -> Vec<f64> {
+/// Cumulative credited tonnes per drawpoint by the end of `period` (0 for drawpoints
+/// without rows by then).
+fn tonnes_by(run: &RunOutput, n: usize, period: i64) -> Vec<f64> {
     let ex = &run.extraction;
     let mut out = vec![0.0; n];
     for (i, &d) in ex.drawpoint.iter().enumerate() {
         if let Some(slot) = out.get_mut(d as usize) {
             let c = ex.cum_tonnes[i];
-            if c.is_finite() && c > *slot {
+            if ex.period[i] <= period && c.is_finite() && c > *slot {
                 *slot = c;
             }
         }
@@ -695,7 +843,7 @@ mod tests {
         let out = run(&scene, 0.05, 0.025);
         assert!(!out.snapshots.is_empty());
         let (_keep, dir) = out_dir("figures-two-dp");
-        let written = write_run_charts(&dir, &scene, &out, None).unwrap();
+        let written = write_run_charts(&dir, &scene, &out, None, &[3]).unwrap();
         let names: Vec<String> = written
             .iter()
             .map(|p| p.file_name().unwrap().to_string_lossy().into_owned())
@@ -714,10 +862,10 @@ mod tests {
         }
 
         // The one section holds both drawpoints, both outlines and deformed layers.
-        let sections = run_sections(&scene, &out, None);
+        let sections = run_sections(&scene, &out, None, 3);
         assert_eq!(sections.len(), 1);
-        let (section, y, period) = &sections[0];
-        assert_eq!((*y, *period), (0.0, Some(3)));
+        let (section, y) = &sections[0];
+        assert_eq!(*y, 0.0);
         assert_eq!(section.drawpoints.len(), 2);
         assert!(
             section.drawpoints[0].2.starts_with("DP01: ")
@@ -760,7 +908,8 @@ mod tests {
                 .run(&mut |_, _| {});
             let ran = t.elapsed();
             let (_keep, dir) = out_dir(name);
-            let written = write_run_charts(&dir, &scene, &out, None).unwrap();
+            let moments = scene.moments(&[]);
+            let written = write_run_charts(&dir, &scene, &out, None, &moments).unwrap();
             eprintln!(
                 "{name}: run {ran:?}, charts {:?}, resolution {:?}, warnings {:?}",
                 t.elapsed() - ran,
@@ -911,16 +1060,14 @@ mod tests {
             },
             ..RunOutput::default()
         };
-        let sections = run_sections(&scene, &out, None);
+        let sections = run_sections(&scene, &out, None, 6);
         let ys: Vec<f64> = sections
             .iter()
             .map(|s| (s.1 * 10.0).round() / 10.0)
             .collect();
         assert_eq!(ys, [-0.5, -0.1, 0.1, 0.5]);
         // Without snapshots: no layers, but labels with the mass drawn.
-        assert!(sections
-            .iter()
-            .all(|s| s.0.layers.is_empty() && s.2.is_none()));
+        assert!(sections.iter().all(|s| s.0.layers.is_empty()));
         assert_eq!(sections[3].0.drawpoints[0].2, "DP06: 6.00 t");
     }
 

@@ -279,6 +279,7 @@ fn fake_run(scene: &Scene) -> RunOutput {
             y: vec![5_000.95, 5_000.95],
             z: vec![2_510.0, 2_505.5],
         },
+        moment_surface: SurfaceTable::default(),
         warnings: vec![RunWarning {
             rule: WarningRule::Short,
             drawpoint: Some("D01-02".into()),

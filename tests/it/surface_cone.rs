@@ -10,6 +10,7 @@ use caveflow::engine::imz::r_law;
 use caveflow::engine::{Engine, RunOutput};
 use caveflow::model::synthetic::UniformBox;
 use caveflow::model::{Scenario, Scene};
+use caveflow::output::figures::{drawdown_section, surface_at};
 
 /// Lattice spacing s, m (h = 2 s).
 const S: f64 = 0.0125;
@@ -214,6 +215,28 @@ fn the_surface_cone_overflows_the_imz_and_outruns_it_in_the_far_field() {
     // just as fast (rim ∝ V^{1/3}) on a smaller IMZ.
     let near = Field::run(1.2, 0.5, 60, 0.0005, 0.0005);
     let far = Field::run(2.4, 2.0, 90, 0.005, 0.0025);
+    // The sections through time cut the IMZ at the free surface (above it the disks hold
+    // the air that left the IMZ's top, not moving rock): no outline point lies above the
+    // surface in any period, and after breakthrough some lie on it (the cut acted).
+    for (name, f) in [("near", &near), ("far", &far)] {
+        let (mut points, mut on) = (0, 0);
+        for (&p, row) in f.scene.periods.id.iter().zip(&f.rows) {
+            let sec = drawdown_section(&f.scene, &f.out, &[0], 0.0, Some(0.05), p);
+            for &(x, z) in sec.imz.iter().flatten().filter(|p| p.0.is_finite()) {
+                let s = surface_at(&sec.surface, x).expect("a surface every period");
+                assert!(
+                    z <= s + 1e-9,
+                    "{name}, period {p}: IMZ at z {z} above the surface {s}"
+                );
+                points += 1;
+                on += usize::from(row.through && (z - s).abs() <= 1e-9);
+            }
+        }
+        eprintln!(
+            "  {name}: {points} IMZ outline points, {on} cut at the surface after breakthrough"
+        );
+        assert!(on > 0, "{name}: the IMZ never reached the surface");
+    }
     let keep = std::env::var_os("CAVEFLOW_DOCS");
     let tmp = tempfile::tempdir().unwrap();
     for (name, f) in [("near", &near), ("far", &far)] {
@@ -246,8 +269,8 @@ fn the_surface_cone_overflows_the_imz_and_outruns_it_in_the_far_field() {
         );
         // The section (like Fig. 33): surface cone, IMZ and IEZ outlines, marker layers.
         let last = f.rows.last().unwrap();
-        let sec =
-            caveflow::output::figures::drawdown_section(&f.scene, &f.out, &[0], 0.0, Some(0.05));
+        let period = *f.scene.periods.id.last().unwrap();
+        let sec = drawdown_section(&f.scene, &f.out, &[0], 0.0, Some(0.05), period);
         let file = format!("surface_cone_{name}_field.png");
         let png = tmp.path().join(&file);
         let title = format!(

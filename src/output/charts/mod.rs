@@ -73,6 +73,8 @@ const SURFACE_COLOUR: RGBColor = RGBColor(120, 70, 20);
 const TRACE_COLOUR: RGBColor = RGBColor(0, 150, 70);
 /// Uncaved ground.
 const UNCAVED_FILL: RGBColor = RGBColor(190, 190, 190);
+/// The air gap (light blue).
+const AIR_FILL: RGBColor = RGBColor(190, 225, 250);
 /// Fill of the model extent on a section.
 const MODEL_FILL: RGBColor = RGBColor(250, 247, 238);
 /// Edge of the model extent.

@@ -17,7 +17,7 @@ use plotters::style::text_anchor::{HPos, VPos};
 use super::{
     axis_title_style, draw_axes, ensure_font, finite_runs, put_text, text, text_width,
     widest_tick_label, write_chart, x_ticks, y_ticks, AxisLabels, ChartError, DrawError, Frame,
-    IntoChartError, Legend, LegendEntry, Pen, Render, Sample, AXIS_TITLE_W, FRAME_COLOUR,
+    IntoChartError, Legend, LegendEntry, Pen, Render, Sample, AIR_FILL, AXIS_TITLE_W, FRAME_COLOUR,
     IEZ_COLOUR, IMZ_COLOUR, LAYER_COLOURS, MAX_SIDE, MIN_W, MODEL_FILL, SURFACE_COLOUR, TICK_GAP,
     TITLE_H, TRACE_COLOUR, UNCAVED_FILL,
 };
@@ -90,8 +90,11 @@ pub struct Section {
     /// The free surface along the section (top of the caved material), a polyline; non-finite
     /// points break it (summary Fig. 33).
     pub surface: Vec<(f64, f64)>,
-    /// Uncaved ground on the section at the end of the run: rectangles ((x0, z0), (x1, z1)).
+    /// Uncaved ground on the section: rectangles ((x0, z0), (x1, z1)).
     pub uncaved: Vec<((f64, f64), (f64, f64))>,
+    /// The air gap on the section (air between the caved rock and the ground above it, or
+    /// the model top): rectangles ((x0, z0), (x1, z1)).
+    pub air: Vec<((f64, f64), (f64, f64))>,
     /// Paths of trace points (`engine::trace`), one polyline per point from its given
     /// position through its position at each period end; drawn with a dot at the start.
     pub traces: Vec<Vec<(f64, f64)>>,
@@ -351,6 +354,12 @@ fn section_legend(section: &Section) -> Vec<LegendEntry> {
             label: "Uncaved ground",
         });
     }
+    if !section.air.is_empty() {
+        entries.push(LegendEntry {
+            sample: Sample::Line(AIR_FILL, 8),
+            label: "Air gap",
+        });
+    }
     if !section.traces.is_empty() {
         entries.push(LegendEntry {
             sample: Sample::Line(TRACE_COLOUR, 2),
@@ -412,9 +421,11 @@ impl Render for SectionPlot<'_> {
         ];
         root.draw(&Rectangle::new(extent, MODEL_FILL.filled()))?;
         root.draw(&Rectangle::new(extent, FRAME_COLOUR.stroke_width(1)))?;
-        for &(a, b) in &s.uncaved {
-            let r = [f.px((a.0, b.1)), f.px((b.0, a.1))];
-            root.draw(&Rectangle::new(r, UNCAVED_FILL.filled()))?;
+        for (rects, fill) in [(&s.uncaved, UNCAVED_FILL), (&s.air, AIR_FILL)] {
+            for &(a, b) in rects {
+                let r = [f.px((a.0, b.1)), f.px((b.0, a.1))];
+                root.draw(&Rectangle::new(r, fill.filled()))?;
+            }
         }
         for (i, layer) in s.layers.iter().enumerate() {
             for run in finite_runs(layer) {
@@ -556,6 +567,7 @@ mod tests {
             ],
             surface: vec![(0.0, 3.3), (1.0, 3.3), (1.2, 3.0), (1.4, 3.3), (2.4, 3.3)],
             uncaved: vec![((1.8, 2.8), (2.4, 3.3))],
+            air: vec![((1.8, 2.5), (2.4, 2.8))],
             traces: Vec::new(),
         }
     }
