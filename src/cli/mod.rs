@@ -631,8 +631,13 @@ fn sweep_cmd(mut a: SweepArgs) -> Result<ExitCode> {
         repeats: a.repeats,
         target: Some(a.target),
     };
+    // One line per run above a progress bar on a terminal; nothing on a non-terminal
+    // (the summary below is printed either way).
+    let bar = progress(0, "runs");
     let rows = sweep::sweep(&loaded.scene, &sc, &cfg, &mut |done, total, r| {
-        eprintln!(
+        bar.set_length(total as u64);
+        bar.set_position(done as u64);
+        bar.println(format!(
             "{done}/{total}: h×{} spacing×{} increment×{}: {:.2} s, {} markers, grade RMSE {:.3}% (second half {:.3}%), dilution entry {:.2}%, IMZ width {:.2}%, IEZ height {:.2}%{}",
             r.mult[0],
             r.mult[1],
@@ -651,8 +656,9 @@ fn sweep_cmd(mut a: SweepArgs) -> Result<ExitCode> {
             } else {
                 ""
             }
-        )
+        ))
     })?;
+    bar.finish_and_clear();
     std::fs::create_dir_all(&a.out).with_context(|| a.out.display().to_string())?;
     let table = a.out.join("sweep.parquet");
     let chart = a.out.join("sweep.png");
