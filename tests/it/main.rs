@@ -26,3 +26,4 @@ mod surface_cone;
 mod sweep;
 mod synthetic_records;
 mod trace;
+mod vtk;
