@@ -94,7 +94,7 @@
 //! writer is a maintained crate so the format is not ours to get wrong, and every file is
 //! written atomically like every output (`output::parquet`).
 
-use std::collections::{BTreeMap, HashMap};
+use std::collections::{BTreeMap, HashMap, HashSet};
 use std::fs;
 use std::path::{Path, PathBuf};
 
@@ -115,30 +115,19 @@ pub const SEGMENTS: usize = 24;
 
 /// Writes the VTK files of a run into `dir` (usually `<run dir>/vtk`, created if needed) and
 /// returns the files written, the collections after the files they list.
+///
+/// Each period's file is built and written before the next is built, so memory holds one
+/// file's data at a time (a mine-scale IMZ series is hundreds of files). A series' files of
+/// periods this run does not have (left by an earlier run into the same directory) are
+/// removed, so that the directory holds what the collection lists.
 pub fn write_vtk(dir: &Path, scene: &Scene, run: &RunOutput) -> Result<Vec<PathBuf>, OutputError> {
     mkdir(dir)?;
     let mut written = Vec::new();
 
-    let series = |name: &str,
-                  files: Vec<(i64, DataSet)>,
-                  written: &mut Vec<PathBuf>|
-     -> Result<(), OutputError> {
-        mkdir(&dir.join(name))?;
-        let mut entries = Vec::with_capacity(files.len());
-        for (period, data) in files {
-            let rel = format!("{name}/{name}_{period}.vtp");
-            written.push(write_file(&dir.join(&rel), data)?);
-            entries.push((period, rel));
-        }
-        written.push(write_pvd(&dir.join(format!("{name}.pvd")), &entries)?);
-        Ok(())
-    };
-
     let imz = by_period(&run.imz.period)
         .into_iter()
-        .map(|(p, rows)| (p, imz_data(scene, &run.imz, &rows)))
-        .collect();
-    series("imz", imz, &mut written)?;
+        .map(|(p, rows)| (p, imz_data(scene, &run.imz, &rows)));
+    write_series(dir, "imz", imz, &mut written)?;
 
     let blocks = &scene.blocks;
     let row_of: HashMap<i64, usize> = blocks
@@ -150,15 +139,13 @@ pub fn write_vtk(dir: &Path, scene: &Scene, run: &RunOutput) -> Result<Vec<PathB
     let markers = run
         .snapshots
         .iter()
-        .map(|s| (s.period, marker_data(blocks, &row_of, s)))
-        .collect();
-    series("markers", markers, &mut written)?;
+        .map(|s| (s.period, marker_data(blocks, &row_of, s)));
+    write_series(dir, "markers", markers, &mut written)?;
 
     let surface = by_period(&run.surface.period)
         .into_iter()
-        .map(|(p, rows)| (p, surface_data(&run.surface, &rows)))
-        .collect();
-    series("surface", surface, &mut written)?;
+        .map(|(p, rows)| (p, surface_data(&run.surface, &rows)));
+    write_series(dir, "surface", surface, &mut written)?;
 
     written.push(write_file(&dir.join("iez.vtp"), iez_data(&run.drawn))?);
     written.push(write_file(&dir.join("blocks.vtr"), block_data(blocks))?);
@@ -167,6 +154,41 @@ pub fn write_vtk(dir: &Path, scene: &Scene, run: &RunOutput) -> Result<Vec<PathB
         drawpoint_data(scene),
     )?);
     Ok(written)
+}
+
+/// Writes a time series: `<dir>/<name>/<name>_<period>.vtp` for each (period, data), built
+/// one at a time as `files` yields them, then `<dir>/<name>.pvd` listing them; removes the
+/// series' other `.vtp` files.
+fn write_series(
+    dir: &Path,
+    name: &str,
+    files: impl Iterator<Item = (i64, DataSet)>,
+    written: &mut Vec<PathBuf>,
+) -> Result<(), OutputError> {
+    let sub = dir.join(name);
+    mkdir(&sub)?;
+    let mut entries = Vec::new();
+    let mut names = HashSet::new();
+    for (period, data) in files {
+        let file = format!("{name}_{period}.vtp");
+        written.push(write_file(&sub.join(&file), data)?);
+        entries.push((period, format!("{name}/{file}")));
+        names.insert(file);
+    }
+    let io = |path: &Path| {
+        let path = path.to_path_buf();
+        move |source| OutputError::Io { path, source }
+    };
+    for entry in fs::read_dir(&sub).map_err(io(&sub))? {
+        let entry = entry.map_err(io(&sub))?;
+        let file = entry.file_name().to_string_lossy().into_owned();
+        if file.starts_with(&format!("{name}_")) && file.ends_with(".vtp") && !names.contains(&file)
+        {
+            fs::remove_file(entry.path()).map_err(io(&entry.path()))?;
+        }
+    }
+    written.push(write_pvd(&dir.join(format!("{name}.pvd")), &entries)?);
+    Ok(())
 }
 
 fn mkdir(dir: &Path) -> Result<(), OutputError> {

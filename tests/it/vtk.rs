@@ -512,3 +512,23 @@ fn vtks_own_readers_open_every_file() {
         "{said}"
     );
 }
+
+/// A second export into the same directory leaves only the files its collections list.
+#[test]
+fn a_second_export_leaves_only_what_its_collections_list() {
+    let (scene, mut out) = tiny_run();
+    let tmp = tempfile::tempdir().unwrap();
+    write_vtk(tmp.path(), &scene, &out).unwrap();
+    assert_eq!(
+        entries(&tmp.path().join("markers")),
+        ["markers_1.vtp", "markers_2.vtp", "markers_3.vtp"]
+    );
+    out.snapshots.drain(..2);
+    write_vtk(tmp.path(), &scene, &out).unwrap();
+    assert_eq!(entries(&tmp.path().join("markers")), ["markers_3.vtp"]);
+    assert_eq!(
+        collection(&tmp.path().join("markers.pvd")),
+        [(3, "markers/markers_3.vtp".to_string())]
+    );
+    assert_eq!(entries(&tmp.path().join("imz")).len(), 3);
+}
