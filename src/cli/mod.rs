@@ -129,6 +129,10 @@ pub struct RunArgs {
     /// extraction report, the marker and trace reports and the daily trace CSV.
     #[arg(long)]
     pub massflow_reports: bool,
+    /// Also write VTK files for ParaView into vtk/ (outputs.vtk): IMZ disks, markers, free
+    /// surface, IEZ and block model, with .pvd collections over the periods.
+    #[arg(long)]
+    pub vtk: bool,
 }
 
 /// Name of the checkpoint file in the output directory.
@@ -375,6 +379,7 @@ fn run(a: RunArgs) -> Result<ExitCode> {
         sc.outputs.dir = out.clone();
     }
     sc.outputs.massflow |= a.massflow_reports;
+    sc.outputs.vtk |= a.vtk;
     if let Some(n) = a.threads {
         rayon::ThreadPoolBuilder::new()
             .num_threads(n)
@@ -459,6 +464,11 @@ fn run(a: RunArgs) -> Result<ExitCode> {
     } else {
         Vec::new()
     };
+    let vtk = if sc.outputs.vtk {
+        output::vtk::write_vtk(&dir.join("vtk"), scene, &out)?
+    } else {
+        Vec::new()
+    };
     let manifest = Manifest::new(
         command,
         &sc,
@@ -493,7 +503,7 @@ fn run(a: RunArgs) -> Result<ExitCode> {
     );
     println!(
         "wrote {} files and {} charts to {}",
-        files.len() + massflow.len(),
+        files.len() + massflow.len() + vtk.len(),
         charts.len(),
         dir.display()
     );

@@ -233,6 +233,11 @@ pub struct Outputs {
     /// the period extraction report, the marker and trace reports and the daily trace CSV.
     /// The Parquet tables stay the primary output. `--massflow-reports` sets it.
     pub massflow: bool,
+    /// Also write VTK XML files for ParaView under `<dir>/vtk/` (`output::vtk`): the IMZ
+    /// disks, the markers at the marker periods, the free surface, the IEZ, the block model
+    /// and the drawpoints, with `.pvd` collections that play the periods in order. Default
+    /// false: they hold the markers again. `run --vtk` sets it.
+    pub vtk: bool,
 }
 
 impl Default for Outputs {
@@ -249,6 +254,7 @@ impl Default for Outputs {
             hive_periods_per_partition: 0,
             scenario_name: None,
             massflow: false,
+            vtk: false,
         }
     }
 }

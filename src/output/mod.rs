@@ -13,6 +13,7 @@
 //! - [`stress`]: the stress logic's tables and charts.
 //! - [`trace`]: the trace points' table.
 //! - [`massflow`]: MassFlow's report layouts (`outputs.massflow`).
+//! - [`vtk`]: VTK XML files and `.pvd` collections for ParaView (`outputs.vtk`).
 //!
 //! # Why every file is written atomically
 //!
@@ -35,6 +36,7 @@ pub mod records;
 pub mod run;
 pub mod stress;
 pub mod trace;
+pub mod vtk;
 pub mod warnings;
 
 pub use self::manifest::Manifest;

@@ -10,6 +10,7 @@
 //!                                           output::dataset)
 //! <dir>/stress_levels.parquet, <dir>/stress_sections.parquet   (only with mechanisms.stress)
 //! <dir>/trace.parquet                       (only with trace points; output::trace)
+//! <dir>/vtk/                               (only with outputs.vtk, `run --vtk`; output::vtk)
 //! <dir>/manifest.json                       (written last)
 //! ```
 //!

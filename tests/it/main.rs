@@ -27,3 +27,4 @@ mod surface_cone;
 mod sweep;
 mod synthetic_records;
 mod trace;
+mod vtk;
