@@ -3,45 +3,19 @@
 
 use std::collections::BTreeMap;
 use std::fs;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use arrow::array::{Array, AsArray};
 use arrow::datatypes::Float64Type;
 use caveflow::analysis::study::runner::{Progress, SUCCESS, TABLES};
 use caveflow::analysis::study::{run_study, Layout, Outcome, Study, StudyProblems};
-use caveflow::model::Scenario;
-use caveflow::output::inputs::write_scene;
 
-use crate::fixtures::{caveflow, entries, read_parquet, tiny};
+use crate::fixtures::{caveflow, entries, read_parquet, study_file, study_scene_files};
 
 struct Quiet;
 impl Progress for Quiet {
     fn periods(&self, _: u64) {}
     fn finished(&self, _: &str, _: Option<&Outcome>) {}
-}
-
-/// The tiny scene's tables and scenario in `dir`, plus `schedule_alt.csv`: the same
-/// schedule at two thirds of the tonnes.
-fn scene_files(dir: &Path) {
-    let mut sc = Scenario::default();
-    sc.outputs.charts = false;
-    write_scene(dir, &tiny(), &sc).unwrap();
-    let mut alt = tiny();
-    alt.schedule.tonnes.iter_mut().for_each(|t| *t *= 2.0 / 3.0);
-    let other = dir.join("alt");
-    write_scene(&other, &alt, &sc).unwrap();
-    fs::copy(other.join("schedule.csv"), dir.join("schedule_alt.csv")).unwrap();
-}
-
-/// Writes `study.toml` with `body` after the scenario line into `dir`; returns its path.
-fn study_file(dir: &Path, body: &str) -> PathBuf {
-    let p = dir.join("study.toml");
-    fs::write(
-        &p,
-        format!("name = \"t\"\nscenario = \"scenario.toml\"\n{body}"),
-    )
-    .unwrap();
-    p
 }
 
 const GRID_ALT_SEEDS: &str = r#"seeds = [1, 2]
@@ -55,7 +29,7 @@ alt = { schedule = "schedule_alt.csv" }
 #[test]
 fn expansion_names_sets_and_hashes() {
     let tmp = tempfile::tempdir().unwrap();
-    scene_files(tmp.path());
+    study_scene_files(tmp.path());
     let path = study_file(tmp.path(), GRID_ALT_SEEDS);
     let s = Study::expand(&path).unwrap();
     let names: Vec<&str> = s.variants.iter().map(|v| v.name.as_str()).collect();
@@ -88,7 +62,7 @@ fn expansion_names_sets_and_hashes() {
     // The same study expanded again, and the same files at another path: the same hashes.
     let again = Study::expand(&path).unwrap();
     let moved = tempfile::tempdir().unwrap();
-    scene_files(moved.path());
+    study_scene_files(moved.path());
     let moved = Study::expand(&study_file(moved.path(), GRID_ALT_SEEDS)).unwrap();
     for ((a, b), c) in s.variants.iter().zip(&again.variants).zip(&moved.variants) {
         assert_eq!(a.hash, b.hash);
@@ -157,7 +131,7 @@ fn dataset_tonnes(layout: &Layout) -> BTreeMap<String, (usize, f64)> {
 #[test]
 fn a_killed_study_resumes_every_variant_exactly_once() {
     let tmp = tempfile::tempdir().unwrap();
-    scene_files(tmp.path());
+    study_scene_files(tmp.path());
     let path = study_file(
         tmp.path(),
         "[grid]\n\"calibration.frag_factor.uniform\" = [0.7, 0.85, 1.0]\n",
@@ -247,7 +221,7 @@ fn a_killed_study_resumes_every_variant_exactly_once() {
 #[test]
 fn the_summary_agrees_with_the_dataset() {
     let tmp = tempfile::tempdir().unwrap();
-    scene_files(tmp.path());
+    study_scene_files(tmp.path());
     let path = study_file(
         tmp.path(),
         GRID_ALT_SEEDS.replace("seeds = [1, 2]\n", "").as_str(),
@@ -323,7 +297,7 @@ fn problems(dir: &Path, body: &str) -> StudyProblems {
 #[test]
 fn bad_studies_are_refused_with_file_key_and_rule() {
     let tmp = tempfile::tempdir().unwrap();
-    scene_files(tmp.path());
+    study_scene_files(tmp.path());
     let d = tmp.path();
     let file = d.join("study.toml").display().to_string();
     let cases: [(&str, &str, &str); 10] = [
@@ -392,7 +366,7 @@ fn cli(args: &[&str]) -> std::process::Output {
 #[test]
 fn cli_plan_variant_and_study_share_the_layout() {
     let tmp = tempfile::tempdir().unwrap();
-    scene_files(tmp.path());
+    study_scene_files(tmp.path());
     let path = study_file(
         tmp.path(),
         "[grid]\n\"calibration.frag_factor.uniform\" = [0.8, 1.0]\n",
@@ -449,7 +423,7 @@ fn cli_plan_variant_and_study_share_the_layout() {
 #[test]
 fn the_cli_killed_mid_study_and_run_again_completes_every_variant_once() {
     let tmp = tempfile::tempdir().unwrap();
-    scene_files(tmp.path());
+    study_scene_files(tmp.path());
     let path = study_file(
         tmp.path(),
         "[grid]\n\"calibration.frag_factor.uniform\" = [0.6, 0.7, 0.8, 0.9, 1.0]\nflow.q = [3.0, 3.5]\n",
