@@ -124,6 +124,7 @@ def main(argv: list[str] | None = None) -> int:
     failed: list[tuple[str, str]] = []
     invalid: list[str] = []
     if todo:
+        t0 = time.monotonic()
         if a.address:
             ray.init(address=a.address, log_to_driver=False)
         else:
@@ -134,6 +135,7 @@ def main(argv: list[str] | None = None) -> int:
             cloudpickle.register_pickle_by_value(sys.modules[run_variant.__module__])
         task = ray.remote(num_cpus=a.task_cpus, max_retries=a.max_retries,
                           retry_exceptions=[TaskDied])(run_variant)
+        t1 = time.monotonic()
         refs = {task.remote(caveflow, str(study), str(out), v["name"], v["name"] == a.kill_once, a.kill_after):
                 v["name"] for v in todo}
         pending = list(refs)
@@ -143,15 +145,18 @@ def main(argv: list[str] | None = None) -> int:
             try:
                 r = ray.get(done[0])
             except Exception as e:  # out of retries: the worker kept dying, or TaskDied
-                failed.append((name, str(e).strip().splitlines()[-1]))
+                failed.append((name, (str(e).strip().splitlines() or [type(e).__name__])[-1]))
                 print(f"{name}: failed", flush=True)
                 continue
             if r["code"] == 1:
                 invalid.append(name)
                 print(f"{name}: invalid input, not retried (see {out / 'ray' / (name + '.log')})", flush=True)
             else:
-                print(f"{name}: done in {r['seconds']:.1f} s on {r['host']}", flush=True)
+                print(f"{name}: done in {r['seconds']:.2f} s on {r['host']}", flush=True)
+        t2 = time.monotonic()
         ray.shutdown()
+        print(f"{len(todo)} task(s) in {t2 - t1:.2f} s; Ray up in {t1 - t0:.2f} s, down in "
+              f"{time.monotonic() - t2:.2f} s", flush=True)
 
     s = subprocess.run([caveflow, "study", str(study), "--out", str(out), "--summary-only"])
     for name in invalid:
