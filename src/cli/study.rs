@@ -128,14 +128,7 @@ pub fn study_cmd(a: StudyArgs) -> Result<ExitCode> {
         report.rows.len(),
         layout.dir.join("dataset").display()
     );
-    let stale = stale_variants(&study, &layout);
-    if !stale.is_empty() {
-        eprintln!(
-            "warning: {} holds variants this study no longer has (kept; remove them by hand if unwanted): {}",
-            layout.dir.join("dataset").display(),
-            stale.join(", ")
-        );
-    }
+    warn_stale(&study, &layout);
     if report.failed.is_empty() {
         Ok(ExitCode::SUCCESS)
     } else {
@@ -143,6 +136,19 @@ pub fn study_cmd(a: StudyArgs) -> Result<ExitCode> {
             eprintln!("error: variant {name}: {why}");
         }
         Ok(ExitCode::from(2))
+    }
+}
+
+/// Names the dataset's variants that the study no longer has (left by an earlier version
+/// of the study file): kept, and seen by a reader of the whole dataset.
+fn warn_stale(study: &Study, layout: &Layout) {
+    let stale = stale_variants(study, layout);
+    if !stale.is_empty() {
+        eprintln!(
+            "warning: {} holds variants this study no longer has (kept; remove them by hand if unwanted): {}",
+            layout.dir.join("dataset").display(),
+            stale.join(", ")
+        );
     }
 }
 
@@ -159,20 +165,12 @@ fn summary_only(a: &StudyArgs, study: &Study) -> Result<ExitCode> {
         .collect();
     let rows = write_study_summary(study, &layout)?;
     println!(
-        "{} of {} variant(s) complete; wrote {} ({} rows)",
+        "{} of {} variant(s) complete; wrote {}",
         rows.len(),
         study.variants.len(),
-        layout.summary().display(),
-        rows.len()
+        layout.summary().display()
     );
-    let stale = stale_variants(study, &layout);
-    if !stale.is_empty() {
-        eprintln!(
-            "warning: {} holds variants this study no longer has (kept): {}",
-            layout.dir.join("dataset").display(),
-            stale.join(", ")
-        );
-    }
+    warn_stale(study, &layout);
     if missing.is_empty() {
         return Ok(ExitCode::SUCCESS);
     }
