@@ -26,6 +26,11 @@ pub fn caveflow() -> Command {
     Command::new(env!("CARGO_BIN_EXE_caveflow"))
 }
 
+/// Runs `caveflow args…` to completion.
+pub fn caveflow_out(args: &[&str]) -> Output {
+    caveflow().args(args).output().unwrap()
+}
+
 /// Runs `caveflow args…` in `cwd` to completion.
 pub fn caveflow_in(args: &[&str], cwd: &Path) -> Output {
     caveflow().args(args).current_dir(cwd).output().unwrap()
@@ -176,6 +181,14 @@ pub fn study_scene_files(dir: &Path) {
     caveflow::output::inputs::write_scene(&other, &alt, &sc).unwrap();
     fs::copy(other.join("schedule.csv"), dir.join("schedule_alt.csv")).unwrap();
 }
+
+/// A study of 4 variants of the tiny scene: two fragment factors × two schedules.
+pub const STUDY_GRID_ALT: &str = r#"[grid]
+"calibration.frag_factor.uniform" = [0.8, 1.0]
+[alternatives.schedule]
+base = {}
+alt = { schedule = "schedule_alt.csv" }
+"#;
 
 /// Writes `study.toml` (study `t` of `scenario.toml`) with `body` after the scenario line
 /// into `dir`; returns its path.

@@ -10,7 +10,9 @@ use arrow::datatypes::Float64Type;
 use caveflow::analysis::study::runner::{Progress, SUCCESS, TABLES};
 use caveflow::analysis::study::{run_study, Layout, Outcome, Study, StudyProblems};
 
-use crate::fixtures::{caveflow, entries, read_parquet, study_file, study_scene_files};
+use crate::fixtures::{
+    caveflow, caveflow_out, entries, read_parquet, study_file, study_scene_files, STUDY_GRID_ALT,
+};
 
 struct Quiet;
 impl Progress for Quiet {
@@ -18,19 +20,12 @@ impl Progress for Quiet {
     fn finished(&self, _: &str, _: Option<&Outcome>) {}
 }
 
-const GRID_ALT_SEEDS: &str = r#"seeds = [1, 2]
-[grid]
-"calibration.frag_factor.uniform" = [0.8, 1.0]
-[alternatives.schedule]
-base = {}
-alt = { schedule = "schedule_alt.csv" }
-"#;
-
 #[test]
 fn expansion_names_sets_and_hashes() {
     let tmp = tempfile::tempdir().unwrap();
     study_scene_files(tmp.path());
-    let path = study_file(tmp.path(), GRID_ALT_SEEDS);
+    let grid_alt_seeds = format!("seeds = [1, 2]\n{STUDY_GRID_ALT}");
+    let path = study_file(tmp.path(), &grid_alt_seeds);
     let s = Study::expand(&path).unwrap();
     let names: Vec<&str> = s.variants.iter().map(|v| v.name.as_str()).collect();
     // 2 × 2 × 2, the first dimension slowest.
@@ -63,7 +58,7 @@ fn expansion_names_sets_and_hashes() {
     let again = Study::expand(&path).unwrap();
     let moved = tempfile::tempdir().unwrap();
     study_scene_files(moved.path());
-    let moved = Study::expand(&study_file(moved.path(), GRID_ALT_SEEDS)).unwrap();
+    let moved = Study::expand(&study_file(moved.path(), &grid_alt_seeds)).unwrap();
     for ((a, b), c) in s.variants.iter().zip(&again.variants).zip(&moved.variants) {
         assert_eq!(a.hash, b.hash);
         assert_eq!(
@@ -222,10 +217,7 @@ fn a_killed_study_resumes_every_variant_exactly_once() {
 fn the_summary_agrees_with_the_dataset() {
     let tmp = tempfile::tempdir().unwrap();
     study_scene_files(tmp.path());
-    let path = study_file(
-        tmp.path(),
-        GRID_ALT_SEEDS.replace("seeds = [1, 2]\n", "").as_str(),
-    );
+    let path = study_file(tmp.path(), STUDY_GRID_ALT);
     let study = Study::expand(&path).unwrap();
     let layout = Layout::new(&tmp.path().join("out"), &study);
     let report = run_study(&study, &layout, 2, &Quiet).unwrap();
@@ -359,10 +351,6 @@ fn bad_studies_are_refused_with_file_key_and_rule() {
     assert_eq!(e.0.len(), 2, "{e}");
 }
 
-fn cli(args: &[&str]) -> std::process::Output {
-    caveflow().args(args).output().unwrap()
-}
-
 #[test]
 fn cli_plan_variant_and_study_share_the_layout() {
     let tmp = tempfile::tempdir().unwrap();
@@ -375,7 +363,7 @@ fn cli_plan_variant_and_study_share_the_layout() {
     let out = tmp.path().join("out");
     let o = out.to_str().unwrap();
     // --plan: the expansion as JSON, nothing written.
-    let r = cli(&["study", "--plan", study]);
+    let r = caveflow_out(&["study", "--plan", study]);
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
     let plan: serde_json::Value = serde_json::from_slice(&r.stdout).unwrap();
     let names: Vec<&str> = plan["variants"]
@@ -387,14 +375,14 @@ fn cli_plan_variant_and_study_share_the_layout() {
     assert_eq!(names, ["uniform-0.8", "uniform-1.0"]);
     assert!(!out.exists());
     // --variant: one variant into the layout, as a cluster task would.
-    let r = cli(&["study", study, "--out", o, "--variant", "uniform-1.0"]);
+    let r = caveflow_out(&["study", study, "--out", o, "--variant", "uniform-1.0"]);
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
     let hash = plan["variants"][1]["hash"].as_str().unwrap();
     let success = out.join("variants/uniform-1.0").join(SUCCESS);
     assert_eq!(fs::read_to_string(&success).unwrap().trim(), hash);
     assert!(!out.join("variants/uniform-0.8").exists());
     // The whole study: the other variant runs, that one is skipped, the summary has both.
-    let r = cli(&["study", study, "--out", o, "--jobs", "1"]);
+    let r = caveflow_out(&["study", study, "--out", o, "--jobs", "1"]);
     let stdout = String::from_utf8_lossy(&r.stdout);
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
     assert!(
@@ -403,12 +391,12 @@ fn cli_plan_variant_and_study_share_the_layout() {
     );
     assert_eq!(read_parquet(&out.join("summary.parquet")).num_rows(), 2);
     // An unknown variant, and a bad study: exit 1, with the rule; nothing written.
-    let r = cli(&["study", study, "--out", o, "--variant", "nope"]);
+    let r = caveflow_out(&["study", study, "--out", o, "--variant", "nope"]);
     assert_eq!(r.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&r.stderr).contains("no variant `nope`"));
     let bad = study_file(tmp.path(), "[grid]\n\"flow.q\" = []\n");
     let fresh = tmp.path().join("fresh");
-    let r = cli(&[
+    let r = caveflow_out(&[
         "study",
         bad.to_str().unwrap(),
         "--out",
@@ -468,7 +456,7 @@ fn the_cli_killed_mid_study_and_run_again_completes_every_variant_once() {
         "killed mid-study: {before} of 10 complete"
     );
     // Run again: the rest run, once each; the complete ones are skipped.
-    let r = cli(&[
+    let r = caveflow_out(&[
         "study",
         path.to_str().unwrap(),
         "--out",

@@ -16,7 +16,9 @@ use std::sync::Mutex;
 use arrow::array::{Array, AsArray, RecordBatch};
 use arrow::datatypes::Float64Type;
 
-use crate::fixtures::{caveflow, read_parquet, repo, study_file, study_scene_files};
+use crate::fixtures::{
+    caveflow_out, read_parquet, repo, study_file, study_scene_files, STUDY_GRID_ALT,
+};
 
 /// One local Ray cluster at a time.
 static RAY: Mutex<()> = Mutex::new(());
@@ -55,10 +57,6 @@ fn driver(py: &Path, args: &[&str]) -> Output {
 fn tail(s: &str, n: usize) -> String {
     let lines: Vec<&str> = s.lines().collect();
     lines[lines.len().saturating_sub(n)..].join("\n")
-}
-
-fn cli(args: &[&str]) -> Output {
-    caveflow().args(args).output().unwrap()
 }
 
 /// Every file under `dir/dataset`, relative path → bytes.
@@ -119,13 +117,6 @@ fn attempts(out: &Path, variant: &str) -> usize {
     log.lines().filter(|l| l.starts_with("attempt on ")).count()
 }
 
-const GRID_ALT: &str = r#"[grid]
-"calibration.frag_factor.uniform" = [0.8, 1.0]
-[alternatives.schedule]
-base = {}
-alt = { schedule = "schedule_alt.csv" }
-"#;
-
 #[test]
 fn summary_only_runs_nothing_and_names_the_variants_not_complete() {
     let tmp = tempfile::tempdir().unwrap();
@@ -136,23 +127,23 @@ fn summary_only_runs_nothing_and_names_the_variants_not_complete() {
     );
     let (s, out) = (path.to_str().unwrap(), tmp.path().join("out"));
     let o = out.to_str().unwrap();
-    let r = cli(&["study", s, "--out", o, "--variant", "uniform-1.0"]);
+    let r = caveflow_out(&["study", s, "--out", o, "--variant", "uniform-1.0"]);
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
-    let r = cli(&["study", s, "--out", o, "--summary-only"]);
+    let r = caveflow_out(&["study", s, "--out", o, "--summary-only"]);
     let err = String::from_utf8_lossy(&r.stderr);
     assert_eq!(r.status.code(), Some(1), "{err}");
     assert!(err.contains("1 variant(s) not complete"), "{err}");
     assert!(err.contains(": uniform-0.8"), "{err}");
     assert!(!out.join("variants/uniform-0.8").exists(), "nothing run");
     assert_eq!(read_parquet(&out.join("summary.parquet")).num_rows(), 1);
-    let r = cli(&["study", s, "--out", o, "--variant", "uniform-0.8"]);
+    let r = caveflow_out(&["study", s, "--out", o, "--variant", "uniform-0.8"]);
     assert!(r.status.success());
-    let r = cli(&["study", s, "--out", o, "--summary-only"]);
+    let r = caveflow_out(&["study", s, "--out", o, "--summary-only"]);
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
     assert!(String::from_utf8_lossy(&r.stdout).contains("2 of 2 variant(s) complete"));
     assert_eq!(read_parquet(&out.join("summary.parquet")).num_rows(), 2);
     // Not with --plan or --variant.
-    let r = cli(&["study", s, "--out", o, "--summary-only", "--plan"]);
+    let r = caveflow_out(&["study", s, "--out", o, "--summary-only", "--plan"]);
     assert_eq!(r.status.code(), Some(1));
 }
 
@@ -163,10 +154,10 @@ fn the_ray_driver_writes_the_parquet_of_the_local_runner() {
     };
     let tmp = tempfile::tempdir().unwrap();
     study_scene_files(tmp.path());
-    let path = study_file(tmp.path(), GRID_ALT);
+    let path = study_file(tmp.path(), STUDY_GRID_ALT);
     let s = path.to_str().unwrap();
     let (local, ray) = (tmp.path().join("local"), tmp.path().join("ray"));
-    let r = cli(&["study", s, "--out", local.to_str().unwrap(), "--jobs", "2"]);
+    let r = caveflow_out(&["study", s, "--out", local.to_str().unwrap(), "--jobs", "2"]);
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
     let r = driver(&py, &[s, "--out", ray.to_str().unwrap()]);
     assert!(r.status.success());
@@ -197,7 +188,7 @@ fn a_ray_task_killed_once_is_retried_and_the_dataset_is_the_same() {
     );
     let s = path.to_str().unwrap();
     let (local, ray) = (tmp.path().join("local"), tmp.path().join("ray"));
-    let r = cli(&["study", s, "--out", local.to_str().unwrap()]);
+    let r = caveflow_out(&["study", s, "--out", local.to_str().unwrap()]);
     assert!(r.status.success());
     // The first attempt of uniform-0.8 kills caveflow and then its own Ray worker (SIGKILL).
     let killed = "uniform-0.8";
@@ -294,9 +285,9 @@ fn duckdb_reads_the_tonnes_and_grades_of_the_summary_from_the_dataset() {
     };
     let tmp = tempfile::tempdir().unwrap();
     study_scene_files(tmp.path());
-    let path = study_file(tmp.path(), GRID_ALT);
+    let path = study_file(tmp.path(), STUDY_GRID_ALT);
     let out = tmp.path().join("out");
-    let r = cli(&[
+    let r = caveflow_out(&[
         "study",
         path.to_str().unwrap(),
         "--out",
