@@ -7,7 +7,7 @@ use std::process::ExitCode;
 use anyhow::Result;
 use clap::Args;
 
-use crate::analysis::study::runner::{run_variant, stale_variants, Progress};
+use crate::analysis::study::runner::{run_variant, stale_variants, write_study_summary, Progress};
 use crate::analysis::study::{run_study, Layout, Outcome, Study};
 
 /// `caveflow study`.
@@ -23,12 +23,16 @@ pub struct StudyArgs {
     #[arg(long, default_value_t = 2, value_name = "N")]
     pub jobs: usize,
     /// Print the expanded study as JSON (name, hash, --set list, inputs, seed of every
-    /// variant) and run nothing.
+    /// variant) and run nothing. The study file is checked, not each variant's tables.
     #[arg(long)]
     pub plan: bool,
     /// Run only this variant into the layout (what a cluster task calls); no summary.
     #[arg(long, value_name = "NAME", conflicts_with = "plan")]
     pub variant: Option<String>,
+    /// Write `summary.parquet` from the complete variants and run none; exit 1, listing
+    /// them, when some are not complete (what a cluster driver calls after its tasks).
+    #[arg(long, conflicts_with_all = ["plan", "variant"])]
+    pub summary_only: bool,
 }
 
 /// The progress bar (on a terminal only) and one line per finished variant.
@@ -61,11 +65,16 @@ pub fn study_cmd(a: StudyArgs) -> Result<ExitCode> {
     if a.jobs == 0 {
         return Err(super::UsageError("--jobs must be at least 1".into()).into());
     }
-    study.validate(a.variant.as_deref())?;
+    if a.summary_only {
+        return summary_only(&a, &study);
+    }
     if a.plan {
+        // The expansion only (the study file's keys, values and tables): each variant's
+        // tables are checked by its own run (exit 1), so that a driver runs the good ones.
         println!("{}", serde_json::to_string_pretty(&study.plan_json())?);
         return Ok(ExitCode::SUCCESS);
     }
+    study.validate(a.variant.as_deref())?;
     let layout = Layout::new(&a.out, &study);
     if let Some(name) = &a.variant {
         let Some(v) = study.variant(name) else {
@@ -119,14 +128,7 @@ pub fn study_cmd(a: StudyArgs) -> Result<ExitCode> {
         report.rows.len(),
         layout.dir.join("dataset").display()
     );
-    let stale = stale_variants(&study, &layout);
-    if !stale.is_empty() {
-        eprintln!(
-            "warning: {} holds variants this study no longer has (kept; remove them by hand if unwanted): {}",
-            layout.dir.join("dataset").display(),
-            stale.join(", ")
-        );
-    }
+    warn_stale(&study, &layout);
     if report.failed.is_empty() {
         Ok(ExitCode::SUCCESS)
     } else {
@@ -135,4 +137,48 @@ pub fn study_cmd(a: StudyArgs) -> Result<ExitCode> {
         }
         Ok(ExitCode::from(2))
     }
+}
+
+/// Names the dataset's variants that the study no longer has (left by an earlier version
+/// of the study file): kept, and seen by a reader of the whole dataset.
+fn warn_stale(study: &Study, layout: &Layout) {
+    let stale = stale_variants(study, layout);
+    if !stale.is_empty() {
+        eprintln!(
+            "warning: {} holds variants this study no longer has (kept; remove them by hand if unwanted): {}",
+            layout.dir.join("dataset").display(),
+            stale.join(", ")
+        );
+    }
+}
+
+/// `caveflow study --summary-only`: the summary of the complete variants; none is run, so
+/// a driver whose tasks missed a variant never runs it here by accident. Exit 1 (the
+/// variants not complete listed) unless every variant is complete.
+fn summary_only(a: &StudyArgs, study: &Study) -> Result<ExitCode> {
+    let layout = Layout::new(&a.out, study);
+    let missing: Vec<&str> = study
+        .variants
+        .iter()
+        .filter(|v| !layout.is_complete(v))
+        .map(|v| v.name.as_str())
+        .collect();
+    let rows = write_study_summary(study, &layout)?;
+    println!(
+        "{} of {} variant(s) complete; wrote {}",
+        rows.len(),
+        study.variants.len(),
+        layout.summary().display()
+    );
+    warn_stale(study, &layout);
+    if missing.is_empty() {
+        return Ok(ExitCode::SUCCESS);
+    }
+    eprintln!(
+        "error: {} variant(s) not complete (no `_SUCCESS` with their hash in {}): {}",
+        missing.len(),
+        layout.dir.join("variants").display(),
+        missing.join(", ")
+    );
+    Ok(ExitCode::from(1))
 }

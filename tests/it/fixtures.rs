@@ -1,6 +1,6 @@
 //! Fixtures shared by the test modules: the command under test, the demo's `data/`, the small
-//! valid scene of the input tests, a tiny box scene, runs and their comparison, Parquet
-//! files, and the check of a reported problem.
+//! valid scene of the input tests, a tiny box scene (and a study of it), runs and their
+//! comparison, Parquet files, and the check of a reported problem.
 
 use std::fs;
 use std::path::{Path, PathBuf};
@@ -24,6 +24,11 @@ use tempfile::TempDir;
 /// The `caveflow` binary built for these tests.
 pub fn caveflow() -> Command {
     Command::new(env!("CARGO_BIN_EXE_caveflow"))
+}
+
+/// Runs `caveflow args…` to completion.
+pub fn caveflow_out(args: &[&str]) -> Output {
+    caveflow().args(args).output().unwrap()
 }
 
 /// Runs `caveflow args…` in `cwd` to completion.
@@ -162,6 +167,39 @@ pub fn tiny() -> Scene {
         ..UniformBox::castro_isolated()
     }
     .scene()
+}
+
+/// The tiny scene's tables and scenario (charts off) in `dir`, plus `schedule_alt.csv`: the
+/// same schedule at two thirds of the tonnes. What the study tests vary.
+pub fn study_scene_files(dir: &Path) {
+    let mut sc = Scenario::default();
+    sc.outputs.charts = false;
+    caveflow::output::inputs::write_scene(dir, &tiny(), &sc).unwrap();
+    let mut alt = tiny();
+    alt.schedule.tonnes.iter_mut().for_each(|t| *t *= 2.0 / 3.0);
+    let other = dir.join("alt");
+    caveflow::output::inputs::write_scene(&other, &alt, &sc).unwrap();
+    fs::copy(other.join("schedule.csv"), dir.join("schedule_alt.csv")).unwrap();
+}
+
+/// A study of 4 variants of the tiny scene: two fragment factors × two schedules.
+pub const STUDY_GRID_ALT: &str = r#"[grid]
+"calibration.frag_factor.uniform" = [0.8, 1.0]
+[alternatives.schedule]
+base = {}
+alt = { schedule = "schedule_alt.csv" }
+"#;
+
+/// Writes `study.toml` (study `t` of `scenario.toml`) with `body` after the scenario line
+/// into `dir`; returns its path.
+pub fn study_file(dir: &Path, body: &str) -> PathBuf {
+    let p = dir.join("study.toml");
+    fs::write(
+        &p,
+        format!("name = \"t\"\nscenario = \"scenario.toml\"\n{body}"),
+    )
+    .unwrap();
+    p
 }
 
 /// Runs `scene` under `sc` to the end.

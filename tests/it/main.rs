@@ -23,6 +23,7 @@ mod rilling;
 mod stability;
 mod stress;
 mod study;
+mod study_ray;
 mod surface_cone;
 mod sweep;
 mod synthetic_records;

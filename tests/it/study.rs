@@ -3,16 +3,16 @@
 
 use std::collections::BTreeMap;
 use std::fs;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use arrow::array::{Array, AsArray};
 use arrow::datatypes::Float64Type;
 use caveflow::analysis::study::runner::{Progress, SUCCESS, TABLES};
 use caveflow::analysis::study::{run_study, Layout, Outcome, Study, StudyProblems};
-use caveflow::model::Scenario;
-use caveflow::output::inputs::write_scene;
 
-use crate::fixtures::{caveflow, entries, read_parquet, tiny};
+use crate::fixtures::{
+    caveflow, caveflow_out, entries, read_parquet, study_file, study_scene_files, STUDY_GRID_ALT,
+};
 
 struct Quiet;
 impl Progress for Quiet {
@@ -20,43 +20,12 @@ impl Progress for Quiet {
     fn finished(&self, _: &str, _: Option<&Outcome>) {}
 }
 
-/// The tiny scene's tables and scenario in `dir`, plus `schedule_alt.csv`: the same
-/// schedule at two thirds of the tonnes.
-fn scene_files(dir: &Path) {
-    let mut sc = Scenario::default();
-    sc.outputs.charts = false;
-    write_scene(dir, &tiny(), &sc).unwrap();
-    let mut alt = tiny();
-    alt.schedule.tonnes.iter_mut().for_each(|t| *t *= 2.0 / 3.0);
-    let other = dir.join("alt");
-    write_scene(&other, &alt, &sc).unwrap();
-    fs::copy(other.join("schedule.csv"), dir.join("schedule_alt.csv")).unwrap();
-}
-
-/// Writes `study.toml` with `body` after the scenario line into `dir`; returns its path.
-fn study_file(dir: &Path, body: &str) -> PathBuf {
-    let p = dir.join("study.toml");
-    fs::write(
-        &p,
-        format!("name = \"t\"\nscenario = \"scenario.toml\"\n{body}"),
-    )
-    .unwrap();
-    p
-}
-
-const GRID_ALT_SEEDS: &str = r#"seeds = [1, 2]
-[grid]
-"calibration.frag_factor.uniform" = [0.8, 1.0]
-[alternatives.schedule]
-base = {}
-alt = { schedule = "schedule_alt.csv" }
-"#;
-
 #[test]
 fn expansion_names_sets_and_hashes() {
     let tmp = tempfile::tempdir().unwrap();
-    scene_files(tmp.path());
-    let path = study_file(tmp.path(), GRID_ALT_SEEDS);
+    study_scene_files(tmp.path());
+    let grid_alt_seeds = format!("seeds = [1, 2]\n{STUDY_GRID_ALT}");
+    let path = study_file(tmp.path(), &grid_alt_seeds);
     let s = Study::expand(&path).unwrap();
     let names: Vec<&str> = s.variants.iter().map(|v| v.name.as_str()).collect();
     // 2 × 2 × 2, the first dimension slowest.
@@ -88,8 +57,8 @@ fn expansion_names_sets_and_hashes() {
     // The same study expanded again, and the same files at another path: the same hashes.
     let again = Study::expand(&path).unwrap();
     let moved = tempfile::tempdir().unwrap();
-    scene_files(moved.path());
-    let moved = Study::expand(&study_file(moved.path(), GRID_ALT_SEEDS)).unwrap();
+    study_scene_files(moved.path());
+    let moved = Study::expand(&study_file(moved.path(), &grid_alt_seeds)).unwrap();
     for ((a, b), c) in s.variants.iter().zip(&again.variants).zip(&moved.variants) {
         assert_eq!(a.hash, b.hash);
         assert_eq!(
@@ -157,7 +126,7 @@ fn dataset_tonnes(layout: &Layout) -> BTreeMap<String, (usize, f64)> {
 #[test]
 fn a_killed_study_resumes_every_variant_exactly_once() {
     let tmp = tempfile::tempdir().unwrap();
-    scene_files(tmp.path());
+    study_scene_files(tmp.path());
     let path = study_file(
         tmp.path(),
         "[grid]\n\"calibration.frag_factor.uniform\" = [0.7, 0.85, 1.0]\n",
@@ -247,11 +216,8 @@ fn a_killed_study_resumes_every_variant_exactly_once() {
 #[test]
 fn the_summary_agrees_with_the_dataset() {
     let tmp = tempfile::tempdir().unwrap();
-    scene_files(tmp.path());
-    let path = study_file(
-        tmp.path(),
-        GRID_ALT_SEEDS.replace("seeds = [1, 2]\n", "").as_str(),
-    );
+    study_scene_files(tmp.path());
+    let path = study_file(tmp.path(), STUDY_GRID_ALT);
     let study = Study::expand(&path).unwrap();
     let layout = Layout::new(&tmp.path().join("out"), &study);
     let report = run_study(&study, &layout, 2, &Quiet).unwrap();
@@ -323,7 +289,7 @@ fn problems(dir: &Path, body: &str) -> StudyProblems {
 #[test]
 fn bad_studies_are_refused_with_file_key_and_rule() {
     let tmp = tempfile::tempdir().unwrap();
-    scene_files(tmp.path());
+    study_scene_files(tmp.path());
     let d = tmp.path();
     let file = d.join("study.toml").display().to_string();
     let cases: [(&str, &str, &str); 10] = [
@@ -385,14 +351,10 @@ fn bad_studies_are_refused_with_file_key_and_rule() {
     assert_eq!(e.0.len(), 2, "{e}");
 }
 
-fn cli(args: &[&str]) -> std::process::Output {
-    caveflow().args(args).output().unwrap()
-}
-
 #[test]
 fn cli_plan_variant_and_study_share_the_layout() {
     let tmp = tempfile::tempdir().unwrap();
-    scene_files(tmp.path());
+    study_scene_files(tmp.path());
     let path = study_file(
         tmp.path(),
         "[grid]\n\"calibration.frag_factor.uniform\" = [0.8, 1.0]\n",
@@ -401,7 +363,7 @@ fn cli_plan_variant_and_study_share_the_layout() {
     let out = tmp.path().join("out");
     let o = out.to_str().unwrap();
     // --plan: the expansion as JSON, nothing written.
-    let r = cli(&["study", "--plan", study]);
+    let r = caveflow_out(&["study", "--plan", study]);
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
     let plan: serde_json::Value = serde_json::from_slice(&r.stdout).unwrap();
     let names: Vec<&str> = plan["variants"]
@@ -413,14 +375,14 @@ fn cli_plan_variant_and_study_share_the_layout() {
     assert_eq!(names, ["uniform-0.8", "uniform-1.0"]);
     assert!(!out.exists());
     // --variant: one variant into the layout, as a cluster task would.
-    let r = cli(&["study", study, "--out", o, "--variant", "uniform-1.0"]);
+    let r = caveflow_out(&["study", study, "--out", o, "--variant", "uniform-1.0"]);
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
     let hash = plan["variants"][1]["hash"].as_str().unwrap();
     let success = out.join("variants/uniform-1.0").join(SUCCESS);
     assert_eq!(fs::read_to_string(&success).unwrap().trim(), hash);
     assert!(!out.join("variants/uniform-0.8").exists());
     // The whole study: the other variant runs, that one is skipped, the summary has both.
-    let r = cli(&["study", study, "--out", o, "--jobs", "1"]);
+    let r = caveflow_out(&["study", study, "--out", o, "--jobs", "1"]);
     let stdout = String::from_utf8_lossy(&r.stdout);
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
     assert!(
@@ -429,12 +391,12 @@ fn cli_plan_variant_and_study_share_the_layout() {
     );
     assert_eq!(read_parquet(&out.join("summary.parquet")).num_rows(), 2);
     // An unknown variant, and a bad study: exit 1, with the rule; nothing written.
-    let r = cli(&["study", study, "--out", o, "--variant", "nope"]);
+    let r = caveflow_out(&["study", study, "--out", o, "--variant", "nope"]);
     assert_eq!(r.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&r.stderr).contains("no variant `nope`"));
     let bad = study_file(tmp.path(), "[grid]\n\"flow.q\" = []\n");
     let fresh = tmp.path().join("fresh");
-    let r = cli(&[
+    let r = caveflow_out(&[
         "study",
         bad.to_str().unwrap(),
         "--out",
@@ -449,7 +411,7 @@ fn cli_plan_variant_and_study_share_the_layout() {
 #[test]
 fn the_cli_killed_mid_study_and_run_again_completes_every_variant_once() {
     let tmp = tempfile::tempdir().unwrap();
-    scene_files(tmp.path());
+    study_scene_files(tmp.path());
     let path = study_file(
         tmp.path(),
         "[grid]\n\"calibration.frag_factor.uniform\" = [0.6, 0.7, 0.8, 0.9, 1.0]\nflow.q = [3.0, 3.5]\n",
@@ -494,7 +456,7 @@ fn the_cli_killed_mid_study_and_run_again_completes_every_variant_once() {
         "killed mid-study: {before} of 10 complete"
     );
     // Run again: the rest run, once each; the complete ones are skipped.
-    let r = cli(&[
+    let r = caveflow_out(&[
         "study",
         path.to_str().unwrap(),
         "--out",

@@ -80,14 +80,20 @@
 //!
 //! `caveflow study --plan STUDY.toml` prints the expanded study as JSON (each variant's
 //! name, hash, `--set` list, input paths and hashes, seed, swept values): the one place the
-//! expansion lives. `caveflow study STUDY.toml --variant NAME --out DIR` runs one variant
+//! expansion lives. It checks the study file (keys, values, that the tables exist) but
+//! not each variant's tables, which that variant's run checks (exit 1): a driver then runs
+//! the good variants and reports the bad. `caveflow study STUDY.toml --variant NAME --out DIR` runs one variant
 //! into the layout (what a task of a cluster driver calls), and `caveflow study STUDY.toml
-//! --out DIR` run after every task skips the complete variants and writes the summary.
+//! --out DIR --summary-only` run after every task writes the summary from the complete
+//! variants and runs none (exit 1, naming them, when some are not complete).
+//! `src/python/caveflow_ray/` is such a driver: one Ray task per variant, with retries
+//! (its README; figures in `docs::performance`, "Studies").
 //!
 //! # Bad study files
 //!
 //! Refused before any run, every problem listed as `file: [rule] key: message`, exit 1
-//! ([`spec::StudyError`] has the rules).
+//! ([`spec::StudyError`] has the rules). `caveflow study` checks every variant's tables
+//! first; `--plan` the study file only, and `--variant` that variant's tables.
 
 pub mod plan;
 pub mod runner;
