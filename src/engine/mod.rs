@@ -972,12 +972,15 @@ impl<'a> Engine<'a> {
         self.record_air_gap(period);
         self.trace.record(period, &mut self.out.trace);
         let wanted = &self.scenario.outputs.surface_periods;
-        if wanted.contains(&period) || (wanted.is_empty() && last) {
+        let written = wanted.contains(&period) || (wanted.is_empty() && last);
+        if written || moment {
             let h = self.free_surface(period);
-            surface_rows(&self.lattice, period, &h, &mut self.out.surface);
-        } else if moment {
-            let h = self.free_surface(period);
-            surface_rows(&self.lattice, period, &h, &mut self.out.moment_surface);
+            let table = if written {
+                &mut self.out.surface
+            } else {
+                &mut self.out.moment_surface
+            };
+            surface_rows(&self.lattice, period, &h, table);
         }
         let wanted = &self.scenario.outputs.marker_periods;
         if wanted.contains(&period) || (wanted.is_empty() && last) {

@@ -389,14 +389,22 @@ pub fn drawdown_section(
 /// The free surface's elevation at `x` on a section (linear between its points, flat
 /// beyond its ends); None where it has no finite point.
 pub fn surface_at(surface: &[(f64, f64)], x: f64) -> Option<f64> {
+    interpolate(&finite_points(surface), x)
+}
+
+/// The finite points of a polyline.
+fn finite_points(line: &[(f64, f64)]) -> Vec<(f64, f64)> {
+    line.iter()
+        .copied()
+        .filter(|p| p.0.is_finite() && p.1.is_finite())
+        .collect()
+}
+
+/// [`surface_at`] on the surface's finite points `pts`.
+fn interpolate(pts: &[(f64, f64)], x: f64) -> Option<f64> {
     if !x.is_finite() {
         return None;
     }
-    let pts: Vec<(f64, f64)> = surface
-        .iter()
-        .copied()
-        .filter(|p| p.0.is_finite() && p.1.is_finite())
-        .collect();
     let (first, last) = (pts.first()?, pts.last()?);
     if x <= first.0 {
         return Some(first.1);
@@ -418,10 +426,12 @@ pub fn surface_at(surface: &[(f64, f64)], x: f64) -> Option<f64> {
 /// crosses the surface (between two of the surface's points both are straight, so the
 /// crossing is exact). Without a surface the line is kept whole.
 pub fn below_surface(line: &[(f64, f64)], surface: &[(f64, f64)]) -> Vec<(f64, f64)> {
-    let Some(first) = surface.iter().find(|p| p.0.is_finite() && p.1.is_finite()) else {
+    // The surface's finite points, once for every segment.
+    let pts = finite_points(surface);
+    let Some(&first) = pts.first() else {
         return line.to_vec();
     };
-    let s = |x: f64| surface_at(surface, x).unwrap_or(first.1);
+    let s = |x: f64| interpolate(&pts, x).unwrap_or(first.1);
     let lerp =
         |a: (f64, f64), b: (f64, f64), t: f64| (a.0 + (b.0 - a.0) * t, a.1 + (b.1 - a.1) * t);
     let mut out: Vec<(f64, f64)> = Vec::new();

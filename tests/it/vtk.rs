@@ -16,6 +16,19 @@ use vtkio::Vtk;
 
 use crate::fixtures::{bits, caveflow_in, entries, run, small_scene_in, tiny, SMALL_SCENE_INPUTS};
 
+/// The entries of `vtk/` after an export, in name order.
+const EXPORT: [&str; 9] = [
+    "blocks.vtr",
+    "drawpoints.vtp",
+    "iez.vtp",
+    "imz",
+    "imz.pvd",
+    "markers",
+    "markers.pvd",
+    "surface",
+    "surface.pvd",
+];
+
 /// The documented fields of each file, in order (`output::vtk`'s tables).
 const IMZ_FIELDS: [&str; 6] = ["drawpoint", "period", "disk", "z_base", "z_top", "radius"];
 const IEZ_FIELDS: [&str; 5] = ["drawpoint", "period", "marker_id", "mass", "frag_size"];
@@ -148,21 +161,7 @@ fn every_vtk_file_reads_back_with_the_runs_counts_and_the_documented_fields() {
     let tmp = tempfile::tempdir().unwrap();
     let dir = tmp.path().join("vtk");
     let files = write_vtk(&dir, &scene, &out).unwrap();
-    assert_eq!(
-        entries(&dir),
-        [
-            "blocks.vtr",
-            "drawpoints.vtp",
-            "iez.vtp",
-            "imz",
-            "imz.pvd",
-            "markers",
-            "markers.pvd",
-            "surface",
-            "surface.pvd"
-        ],
-        "and no temporary file left"
-    );
+    assert_eq!(entries(&dir), EXPORT, "and no temporary file left");
     for f in &files {
         assert!(f.is_file(), "{} listed but absent", f.display());
     }
@@ -400,20 +399,7 @@ fn the_cli_writes_vtk_only_when_asked_and_changes_no_table() {
     let key = go("key", &["--set", "outputs.vtk=true"]);
     assert!(!off.join("vtk").exists(), "off by default");
     for on in [&flag, &key] {
-        assert_eq!(
-            entries(&on.join("vtk")),
-            [
-                "blocks.vtr",
-                "drawpoints.vtp",
-                "iez.vtp",
-                "imz",
-                "imz.pvd",
-                "markers",
-                "markers.pvd",
-                "surface",
-                "surface.pvd"
-            ]
-        );
+        assert_eq!(entries(&on.join("vtk")), EXPORT);
         for (_, file) in collection(&on.join("vtk/imz.pvd")) {
             let piece = poly(&on.join("vtk").join(file));
             assert!(piece.num_strips() > 0);
