@@ -7,7 +7,9 @@ use std::process::ExitCode;
 use anyhow::Result;
 use clap::Args;
 
-use crate::analysis::study::runner::{run_variant, stale_variants, write_study_summary, Progress};
+use crate::analysis::study::runner::{
+    default_threads, run_variant, stale_variants, worker_pool, write_study_summary, Progress,
+};
 use crate::analysis::study::{run_study, Layout, Outcome, Study};
 
 /// `caveflow study`.
@@ -18,10 +20,13 @@ pub struct StudyArgs {
     /// Output directory: `dataset/`, `variants/` and `summary.parquet`.
     #[arg(long, default_value = "study")]
     pub out: PathBuf,
-    /// Variants run at once. Each run's parallel loops share the cores, and a second run
-    /// fills the serial stretches of the first (`analysis::study`, "In parallel").
+    /// Workers: variants run at once (`analysis::study`, "In parallel").
     #[arg(long, default_value_t = 2, value_name = "N")]
     pub jobs: usize,
+    /// Threads of each worker: each variant runs in its own pool of T threads (default:
+    /// max(1, cores / N); with --variant, every core).
+    #[arg(long, value_name = "T")]
+    pub threads: Option<usize>,
     /// Print the expanded study as JSON (name, hash, --set list, inputs, seed of every
     /// variant) and run nothing. The study file is checked, not each variant's tables.
     #[arg(long)]
@@ -65,6 +70,9 @@ pub fn study_cmd(a: StudyArgs) -> Result<ExitCode> {
     if a.jobs == 0 {
         return Err(super::UsageError("--jobs must be at least 1".into()).into());
     }
+    if a.threads == Some(0) {
+        return Err(super::UsageError("--threads must be at least 1".into()).into());
+    }
     if a.summary_only {
         return summary_only(&a, &study);
     }
@@ -86,7 +94,8 @@ pub fn study_cmd(a: StudyArgs) -> Result<ExitCode> {
             ))
             .into());
         };
-        match run_variant(&layout, v, &mut |_, _| {})? {
+        let threads = a.threads.unwrap_or_else(|| default_threads(1));
+        match worker_pool(threads)?.install(|| run_variant(&layout, v, &mut |_, _| {}))? {
             Outcome::Skipped => println!("{name}: complete ({}), skipped", v.hash),
             Outcome::Ran(s) => println!("{name}: ran in {s:.1} s ({})", v.hash),
         }
@@ -98,12 +107,14 @@ pub fn study_cmd(a: StudyArgs) -> Result<ExitCode> {
         .iter()
         .filter(|v| !layout.is_complete(v))
         .count();
+    let threads = a.threads.unwrap_or_else(|| default_threads(a.jobs));
     eprintln!(
-        "study {}: {} variant(s), {} to run, {} job(s)",
+        "study {}: {} variant(s), {} to run, {} worker(s) of {} thread(s)",
         study.name,
         study.variants.len(),
         total,
-        a.jobs
+        a.jobs,
+        threads
     );
     let bar = if terminal {
         // Periods of the variants to run; a variant's periods are known once it loads, so
@@ -117,7 +128,7 @@ pub fn study_cmd(a: StudyArgs) -> Result<ExitCode> {
         indicatif::ProgressBar::hidden()
     };
     let progress = Bar { bar, terminal };
-    let report = run_study(&study, &layout, a.jobs, &progress)?;
+    let report = run_study(&study, &layout, a.jobs, threads, &progress)?;
     progress.bar.finish_and_clear();
     println!(
         "{} ran, {} complete already, {} failed; wrote {} ({} rows) and {}",

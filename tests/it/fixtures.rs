@@ -2,6 +2,7 @@
 //! valid scene of the input tests, a tiny box scene (and a study of it), runs and their
 //! comparison, Parquet files, and the check of a reported problem.
 
+use std::collections::BTreeMap;
 use std::fs;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -189,6 +190,58 @@ pub const STUDY_GRID_ALT: &str = r#"[grid]
 base = {}
 alt = { schedule = "schedule_alt.csv" }
 "#;
+
+/// Every file under `dir/dataset`, relative path → bytes.
+pub fn dataset_files(dir: &Path) -> BTreeMap<String, Vec<u8>> {
+    fn walk(root: &Path, d: &Path, out: &mut BTreeMap<String, Vec<u8>>) {
+        for e in fs::read_dir(d).unwrap() {
+            let p = e.unwrap().path();
+            if p.is_dir() {
+                walk(root, &p, out);
+            } else {
+                let rel = p.strip_prefix(root).unwrap().display().to_string();
+                out.insert(rel, fs::read(&p).unwrap());
+            }
+        }
+    }
+    let mut out = BTreeMap::new();
+    walk(&dir.join("dataset"), &dir.join("dataset"), &mut out);
+    out
+}
+
+/// Asserts that two study outputs hold the same dataset byte for byte (every
+/// `part-*.parquet` and `_SUCCESS`) and the same summary rows but for the run time.
+/// Returns the number of Parquet files.
+pub fn assert_same_study(a: &Path, b: &Path) -> usize {
+    let (fa, fb) = (dataset_files(a), dataset_files(b));
+    assert_eq!(
+        fa.keys().collect::<Vec<_>>(),
+        fb.keys().collect::<Vec<_>>(),
+        "the same files"
+    );
+    let mut parquet = 0;
+    for (k, x) in &fa {
+        assert!(x == &fb[k], "{k} differs");
+        parquet += usize::from(k.ends_with(".parquet"));
+    }
+    let (sa, sb) = (
+        read_parquet(&a.join("summary.parquet")),
+        read_parquet(&b.join("summary.parquet")),
+    );
+    assert_eq!(sa.schema(), sb.schema());
+    assert_eq!(sa.num_rows(), sb.num_rows());
+    for (i, f) in sa.schema().fields().iter().enumerate() {
+        if f.name() != "wall_s" {
+            assert_eq!(
+                sa.column(i).to_data(),
+                sb.column(i).to_data(),
+                "summary column {}",
+                f.name()
+            );
+        }
+    }
+    parquet
+}
 
 /// Writes `study.toml` (study `t` of `scenario.toml`) with `body` after the scenario line
 /// into `dir`; returns its path.

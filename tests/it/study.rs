@@ -7,11 +7,13 @@ use std::path::Path;
 
 use arrow::array::{Array, AsArray};
 use arrow::datatypes::Float64Type;
+use caveflow::analysis::study::plan::{variant_hash, Swept, VERSION};
 use caveflow::analysis::study::runner::{Progress, SUCCESS, TABLES};
 use caveflow::analysis::study::{run_study, Layout, Outcome, Study, StudyProblems};
 
 use crate::fixtures::{
-    caveflow, caveflow_out, entries, read_parquet, study_file, study_scene_files, STUDY_GRID_ALT,
+    assert_same_study, caveflow, caveflow_out, entries, read_parquet, study_file,
+    study_scene_files, STUDY_GRID_ALT,
 };
 
 struct Quiet;
@@ -135,7 +137,7 @@ fn a_killed_study_resumes_every_variant_exactly_once() {
     study.validate(None).unwrap();
     let out = tmp.path().join("out");
     let layout = Layout::new(&out, &study);
-    let first = run_study(&study, &layout, 2, &Quiet).unwrap();
+    let first = run_study(&study, &layout, 2, 1, &Quiet).unwrap();
     assert_eq!(first.ran.len(), 3);
     assert!(first.skipped.is_empty() && first.failed.is_empty());
     let complete = dataset_tonnes(&layout);
@@ -165,7 +167,7 @@ fn a_killed_study_resumes_every_variant_exactly_once() {
         .join("period=1")
         .join("part-0.parquet");
     let c_before = fs::metadata(&c_file).unwrap().modified().unwrap();
-    let again = run_study(&study, &layout, 2, &Quiet).unwrap();
+    let again = run_study(&study, &layout, 2, 1, &Quiet).unwrap();
     let mut ran: Vec<String> = again.ran.iter().map(|(n, _)| n.clone()).collect();
     ran.sort();
     assert_eq!(ran, [a.clone(), b.clone()]);
@@ -202,13 +204,13 @@ fn a_killed_study_resumes_every_variant_exactly_once() {
     }
     // (d): a `_SUCCESS` of another hash is not complete.
     fs::write(layout.state(&c).join(SUCCESS), "0000\n").unwrap();
-    let third = run_study(&study, &layout, 1, &Quiet).unwrap();
+    let third = run_study(&study, &layout, 1, 1, &Quiet).unwrap();
     assert_eq!(third.ran.len(), 1);
     assert_eq!(third.ran[0].0, c);
     assert_eq!(third.skipped.len(), 2);
     assert_eq!(dataset_tonnes(&layout), complete);
     // Once more: nothing to run.
-    let fourth = run_study(&study, &layout, 2, &Quiet).unwrap();
+    let fourth = run_study(&study, &layout, 2, 1, &Quiet).unwrap();
     assert!(fourth.ran.is_empty());
     assert_eq!(fourth.skipped.len(), 3);
 }
@@ -220,7 +222,7 @@ fn the_summary_agrees_with_the_dataset() {
     let path = study_file(tmp.path(), STUDY_GRID_ALT);
     let study = Study::expand(&path).unwrap();
     let layout = Layout::new(&tmp.path().join("out"), &study);
-    let report = run_study(&study, &layout, 2, &Quiet).unwrap();
+    let report = run_study(&study, &layout, 2, 1, &Quiet).unwrap();
     assert_eq!(report.rows.len(), 4);
     let s = read_parquet(&layout.summary());
     assert_eq!(s.num_rows(), 4);
@@ -292,7 +294,7 @@ fn bad_studies_are_refused_with_file_key_and_rule() {
     study_scene_files(tmp.path());
     let d = tmp.path();
     let file = d.join("study.toml").display().to_string();
-    let cases: [(&str, &str, &str); 10] = [
+    let cases: [(&str, &str, &str); 14] = [
         ("sedes = [1]\n", "unknown-key", "unknown field `sedes`"),
         (
             "[grid]\n\"flow.qq\" = [1.0]\n",
@@ -330,6 +332,22 @@ fn bad_studies_are_refused_with_file_key_and_rule() {
             "alternatives.layout.x.dps: an alternative swaps input tables",
         ),
         ("seeds = []\n", "empty-grid", "seeds: no seeds"),
+        ("[cases]\n", "empty-grid", "cases: no cases"),
+        (
+            "[cases]\n\"a b\" = []\n",
+            "bad-name",
+            "cases.a b: `a b` must be",
+        ),
+        (
+            "[cases]\nx = [\"flow.q=-1\"]\n",
+            "setting-range",
+            "cases.x: flow.q must be a positive number",
+        ),
+        (
+            "keep_periods = 0\n",
+            "setting-range",
+            "keep_periods: keep_periods must be at least 1",
+        ),
         (
             "[grid]\n\"calibration.frag_factor.granite\" = [0.5]\n",
             "bad-variant",
@@ -420,7 +438,7 @@ fn the_cli_killed_mid_study_and_run_again_completes_every_variant_once() {
     assert_eq!(study.variants.len(), 10);
     // The reference: the same study, uninterrupted, in process.
     let reference = Layout::new(&tmp.path().join("reference"), &study);
-    run_study(&study, &reference, 2, &Quiet).unwrap();
+    run_study(&study, &reference, 2, 1, &Quiet).unwrap();
     let out = tmp.path().join("out");
     let layout = Layout::new(&out, &study);
     let complete = || {
@@ -481,4 +499,121 @@ fn the_cli_killed_mid_study_and_run_again_completes_every_variant_once() {
         }
     }
     assert_eq!(read_parquet(&layout.summary()).num_rows(), 10);
+}
+
+/// `[cases]`: named variants, each with its own overrides (where a grid's product does not
+/// fit: `caveflow calibrate`'s runs), crossed with the other dimensions like one; and
+/// `keep_periods`, the first periods of every variant.
+#[test]
+fn cases_are_variants_with_their_own_overrides() {
+    let tmp = tempfile::tempdir().unwrap();
+    study_scene_files(tmp.path());
+    let path = study_file(
+        tmp.path(),
+        "keep_periods = 2\nseeds = [1, 2]\n[cases]\nslow = [\"flow.q=3.0\"]\nfine = [\"calibration.frag_factor.uniform=0.8\", \"flow.q=3.0\"]\n",
+    );
+    let s = Study::expand(&path).unwrap();
+    let names: Vec<&str> = s.variants.iter().map(|v| v.name.as_str()).collect();
+    assert_eq!(
+        names,
+        ["fine_seed-1", "fine_seed-2", "slow_seed-1", "slow_seed-2"]
+    );
+    assert_eq!(s.columns, ["case"]);
+    let (fine, slow) = (&s.variants[0], &s.variants[2]);
+    assert_eq!(
+        fine.values,
+        [("case".to_string(), Swept::Text("fine".into()))]
+    );
+    assert_eq!(fine.scenario.calibration.frag_factor["uniform"], 0.8);
+    assert_eq!(fine.scenario.flow.q, 3.0);
+    assert!(slow.scenario.calibration.frag_factor.is_empty());
+    assert_eq!(slow.scenario.flow.q, 3.0);
+    assert_eq!(fine.keep_periods, Some(2));
+    assert_eq!(fine.load().unwrap().scene.periods.len(), 2, "of 3");
+    assert_eq!(s.plan_json()["keep_periods"], 2);
+    // Run: two periods of rows per drawpoint, in the summary with the case's name.
+    let layout = Layout::new(&tmp.path().join("out"), &s);
+    let report = run_study(&s, &layout, 2, 1, &Quiet).unwrap();
+    assert_eq!(report.ran.len(), 4, "{report:?}");
+    let sum = read_parquet(&layout.summary());
+    let case = sum.column_by_name("case").unwrap().as_string::<i32>();
+    assert_eq!(case.value(0), "fine");
+    let periods = sum
+        .column_by_name("periods")
+        .unwrap()
+        .as_primitive::<arrow::datatypes::Int64Type>();
+    assert!(periods.iter().all(|p| p == Some(2)));
+}
+
+/// The variant hash covers caveflow's version, so that an upgraded binary skips no
+/// variant an older one computed, and the periods kept; the same inputs give the same hash.
+#[test]
+fn the_variant_hash_covers_the_version_and_the_periods_kept() {
+    let tmp = tempfile::tempdir().unwrap();
+    study_scene_files(tmp.path());
+    let s = Study::expand(&study_file(tmp.path(), "")).unwrap();
+    let v = &s.variants[0];
+    assert_eq!(v.name, "base");
+    let hash = |keep, version| variant_hash(&v.scenario, &v.inputs, keep, version);
+    assert_eq!(v.hash, hash(None, VERSION));
+    assert_eq!(hash(None, "0.1.0"), hash(None, "0.1.0"));
+    assert_ne!(hash(None, "0.1.0"), hash(None, "0.1.1"));
+    assert_ne!(v.hash, hash(None, "0.0.0-older"));
+    let kept = Study::expand(&study_file(tmp.path(), "keep_periods = 2\n")).unwrap();
+    assert_eq!(kept.variants[0].hash, hash(Some(2), VERSION));
+    assert_ne!(kept.variants[0].hash, v.hash);
+    assert_ne!(hash(Some(2), VERSION), hash(Some(1), VERSION));
+}
+
+/// `--threads T`: each worker runs its variants in its own pool of T threads; the dataset
+/// is the same byte for byte at any number of workers and threads (the engine is
+/// deterministic), and each variant's manifest records its worker's threads.
+#[test]
+fn workers_of_any_size_write_the_same_dataset() {
+    let tmp = tempfile::tempdir().unwrap();
+    study_scene_files(tmp.path());
+    let path = study_file(tmp.path(), STUDY_GRID_ALT);
+    let s = path.to_str().unwrap();
+    let mut outs = Vec::new();
+    for (jobs, threads) in [("1", "1"), ("2", "1"), ("2", "2"), ("1", "3")] {
+        let out = tmp.path().join(format!("out-{jobs}-{threads}"));
+        let r = caveflow_out(&[
+            "study",
+            s,
+            "--out",
+            out.to_str().unwrap(),
+            "--jobs",
+            jobs,
+            "--threads",
+            threads,
+        ]);
+        let err = String::from_utf8_lossy(&r.stderr);
+        assert!(r.status.success(), "{err}");
+        assert!(
+            err.contains(&format!("{jobs} worker(s) of {threads} thread(s)")),
+            "{err}"
+        );
+        let manifest: serde_json::Value = serde_json::from_str(
+            &fs::read_to_string(out.join("variants/uniform-0.8_schedule-alt/manifest.json"))
+                .unwrap(),
+        )
+        .unwrap();
+        assert_eq!(manifest["threads"], threads.parse::<u64>().unwrap());
+        outs.push(out);
+    }
+    for o in &outs[1..] {
+        assert!(assert_same_study(&outs[0], o) >= 4 * 9);
+    }
+    let none = tmp.path().join("none");
+    let r = caveflow_out(&[
+        "study",
+        s,
+        "--out",
+        none.to_str().unwrap(),
+        "--threads",
+        "0",
+    ]);
+    assert_eq!(r.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&r.stderr).contains("--threads must be at least 1"));
+    assert!(!none.exists());
 }

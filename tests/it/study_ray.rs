@@ -7,7 +7,6 @@
 //! pass. Each starts a local Ray cluster of 2 CPUs on 127.0.0.1 (a few seconds); they take
 //! a lock so that two clusters never share the 2 cores.
 
-use std::collections::BTreeMap;
 use std::fs;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -17,7 +16,8 @@ use arrow::array::{Array, AsArray, RecordBatch};
 use arrow::datatypes::Float64Type;
 
 use crate::fixtures::{
-    caveflow_out, read_parquet, repo, study_file, study_scene_files, STUDY_GRID_ALT,
+    assert_same_study, caveflow_out, dataset_files, read_parquet, repo, study_file,
+    study_scene_files, STUDY_GRID_ALT,
 };
 
 /// One local Ray cluster at a time.
@@ -57,58 +57,6 @@ fn driver(py: &Path, args: &[&str]) -> Output {
 fn tail(s: &str, n: usize) -> String {
     let lines: Vec<&str> = s.lines().collect();
     lines[lines.len().saturating_sub(n)..].join("\n")
-}
-
-/// Every file under `dir/dataset`, relative path → bytes.
-fn dataset_files(dir: &Path) -> BTreeMap<String, Vec<u8>> {
-    fn walk(root: &Path, d: &Path, out: &mut BTreeMap<String, Vec<u8>>) {
-        for e in fs::read_dir(d).unwrap() {
-            let p = e.unwrap().path();
-            if p.is_dir() {
-                walk(root, &p, out);
-            } else {
-                let rel = p.strip_prefix(root).unwrap().display().to_string();
-                out.insert(rel, fs::read(&p).unwrap());
-            }
-        }
-    }
-    let mut out = BTreeMap::new();
-    walk(&dir.join("dataset"), &dir.join("dataset"), &mut out);
-    out
-}
-
-/// Asserts that two study outputs hold the same dataset byte for byte (every
-/// `part-*.parquet` and `_SUCCESS`) and the same summary rows but for the run time.
-/// Returns the number of Parquet files.
-fn assert_same_study(a: &Path, b: &Path) -> usize {
-    let (fa, fb) = (dataset_files(a), dataset_files(b));
-    assert_eq!(
-        fa.keys().collect::<Vec<_>>(),
-        fb.keys().collect::<Vec<_>>(),
-        "the same files"
-    );
-    let mut parquet = 0;
-    for (k, x) in &fa {
-        assert!(x == &fb[k], "{k} differs");
-        parquet += usize::from(k.ends_with(".parquet"));
-    }
-    let (sa, sb) = (
-        read_parquet(&a.join("summary.parquet")),
-        read_parquet(&b.join("summary.parquet")),
-    );
-    assert_eq!(sa.schema(), sb.schema());
-    assert_eq!(sa.num_rows(), sb.num_rows());
-    for (i, f) in sa.schema().fields().iter().enumerate() {
-        if f.name() != "wall_s" {
-            assert_eq!(
-                sa.column(i).to_data(),
-                sb.column(i).to_data(),
-                "summary column {}",
-                f.name()
-            );
-        }
-    }
-    parquet
 }
 
 /// The `attempt` lines of a variant's driver log.

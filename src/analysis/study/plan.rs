@@ -39,7 +39,8 @@ pub struct Variant {
     /// Name, unique in the study: the `scenario=` partition value.
     pub name: String,
     /// Content hash (SHA-256, hex) of the resolved scenario (input paths and output
-    /// settings that only place files left out), each input file's SHA-256 and the seed.
+    /// settings that only place files left out), each input file's SHA-256, the seed, the
+    /// periods kept and caveflow's version ([`variant_hash`]).
     pub hash: String,
     /// The overrides on the base scenario, in `run --set` form.
     pub sets: Vec<String>,
@@ -51,6 +52,8 @@ pub struct Variant {
     pub scenario: Scenario,
     /// Input role → (path, SHA-256).
     pub inputs: BTreeMap<String, (PathBuf, String)>,
+    /// Only the first N periods (the study's `keep_periods`).
+    pub keep_periods: Option<usize>,
 }
 
 /// A study expanded: its variants in order (the first dimension varies slowest).
@@ -248,6 +251,47 @@ impl Study {
             }
             dims.push((dim.clone(), choices));
         }
+        // Cases: explicit variants, each its own overrides.
+        if let Some(cases) = spec.cases.as_ref().filter(|c| !c.is_empty()) {
+            let mut choices = Vec::new();
+            for (case, sets) in cases {
+                let ckey = format!("cases.{case}");
+                if partition_value(case) != *case || case.starts_with('.') {
+                    problems.push(StudyError::new(
+                        file,
+                        &ckey,
+                        "bad-name",
+                        format!("`{case}` must be letters, digits, `.`, `_` and `-` (not starting with `.`): it names variants"),
+                    ));
+                    continue;
+                }
+                let all: Vec<String> = spec.set.iter().chain(sets).cloned().collect();
+                match Scenario::load(&scenario, &all) {
+                    Ok(_) => choices.push(Choice {
+                        label: case.clone(),
+                        sets: sets.clone(),
+                        value: Swept::Text(case.clone()),
+                    }),
+                    Err(e) => problems.push(scenario_problem(file, &ckey, e)),
+                }
+            }
+            dims.push(("case".into(), choices));
+        } else if spec.cases.is_some() {
+            problems.push(StudyError::new(
+                file,
+                "cases",
+                "empty-grid",
+                "no cases: give at least one, or leave `[cases]` out",
+            ));
+        }
+        if spec.keep_periods == Some(0) {
+            problems.push(StudyError::new(
+                file,
+                "keep_periods",
+                "setting-range",
+                "keep_periods must be at least 1 (the periods of every variant kept)",
+            ));
+        }
         // Seeds.
         if let Some(seeds) = &spec.seeds {
             if seeds.is_empty() {
@@ -332,7 +376,7 @@ impl Study {
                     )),
                 }
             }
-            let hash = variant_hash(&sc, &inputs);
+            let hash = variant_hash(&sc, &inputs, spec.keep_periods, VERSION);
             variants.push(Variant {
                 name,
                 hash,
@@ -341,6 +385,7 @@ impl Study {
                 values,
                 scenario: sc,
                 inputs,
+                keep_periods: spec.keep_periods,
             });
         }
         // Identical problems of many variants (a base table missing) once.
@@ -415,6 +460,7 @@ impl Study {
         json!({
             "study": self.name,
             "file": self.file,
+            "keep_periods": self.variants.first().and_then(|v| v.keep_periods),
             "scenario": self.scenario,
             "columns": self.columns,
             "variants": variants,
@@ -426,8 +472,11 @@ impl Variant {
     /// Loads the variant's scene and checks that the method holds for it; the problems as
     /// text otherwise. The input files must still be the ones hashed.
     pub fn load(&self) -> Result<LoadedScene, Vec<String>> {
-        let loaded = load_scene(&self.scenario)
+        let mut loaded = load_scene(&self.scenario)
             .map_err(|p| p.0.iter().map(|p| p.to_string()).collect::<Vec<_>>())?;
+        if let Some(n) = self.keep_periods {
+            loaded.scene.keep_periods(n);
+        }
         for f in &loaded.inputs {
             if self
                 .inputs
@@ -466,12 +515,22 @@ fn input_paths(sc: &Scenario) -> Vec<(&'static str, PathBuf)> {
     v
 }
 
+/// caveflow's version, which every variant's hash covers ([`variant_hash`]).
+pub const VERSION: &str = env!("CARGO_PKG_VERSION");
+
 /// The content hash of a variant: SHA-256 of the resolved scenario's JSON with the input
 /// paths replaced by their roles and the output directory and scenario name left out (they
-/// place files, they change no result), then each input role's SHA-256, then the seed. The
-/// same tables under another path, or the study moved, give the same hash; one changed
-/// byte in a table gives another.
-pub fn variant_hash(sc: &Scenario, inputs: &BTreeMap<String, (PathBuf, String)>) -> String {
+/// place files, they change no result), then each input role's SHA-256, the seed, the
+/// periods kept (when not all) and `version`, caveflow's ([`VERSION`]): another version may
+/// compute another result, so a variant is never skipped for one an older binary made.
+/// The same tables under another path, or the study moved, give the same hash; one
+/// changed byte in a table gives another.
+pub fn variant_hash(
+    sc: &Scenario,
+    inputs: &BTreeMap<String, (PathBuf, String)>,
+    keep_periods: Option<usize>,
+    version: &str,
+) -> String {
     let mut s = sc.clone();
     s.inputs.blocks = "blocks".into();
     s.inputs.drawpoints = "drawpoints".into();
@@ -487,5 +546,9 @@ pub fn variant_hash(sc: &Scenario, inputs: &BTreeMap<String, (PathBuf, String)>)
         text.push_str(&format!("\n{role}={sha}"));
     }
     text.push_str(&format!("\nseed={}", sc.seed));
+    if let Some(n) = keep_periods {
+        text.push_str(&format!("\nkeep_periods={n}"));
+    }
+    text.push_str(&format!("\ncaveflow={version}"));
     crate::io::sha256_hex(text.as_bytes())
 }

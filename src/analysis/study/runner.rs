@@ -57,6 +57,31 @@ impl Layout {
         self.dir.join("summary.parquet")
     }
 
+    /// The partition directories of a variant's table, `(first period, path, whether the
+    /// directory holds one period and so no `period` column)`, in period order; none when
+    /// the variant wrote no rows of it.
+    pub fn partitions(&self, table: &str, variant: &str) -> Result<Vec<(i64, PathBuf, bool)>> {
+        let dir = self.table_root(table).join(format!("scenario={variant}"));
+        let Ok(entries) = std::fs::read_dir(&dir) else {
+            return Ok(Vec::new());
+        };
+        let mut parts = Vec::new();
+        for e in entries.flatten() {
+            let n = e.file_name().to_string_lossy().into_owned();
+            let (key, single) = match (n.strip_prefix("period="), n.strip_prefix("period_group=")) {
+                (Some(k), _) => (k, true),
+                (_, Some(k)) => (k, false),
+                _ => continue,
+            };
+            let first = key
+                .parse()
+                .with_context(|| format!("{}: not a period partition", e.path().display()))?;
+            parts.push((first, e.path(), single));
+        }
+        parts.sort_by_key(|p| p.0);
+        Ok(parts)
+    }
+
     /// Whether the variant is complete: its `_SUCCESS` holds its hash.
     pub fn is_complete(&self, v: &Variant) -> bool {
         std::fs::read_to_string(self.state(&v.name).join(SUCCESS)).is_ok_and(|h| h.trim() == v.hash)
@@ -194,28 +219,51 @@ pub trait Progress: Sync {
     fn finished(&self, name: &str, outcome: Option<&Outcome>);
 }
 
-/// Runs every variant that is not complete on `jobs` worker threads (each run's own
-/// parallel loops share rayon's one global pool), then writes `summary.parquet` from the
-/// complete variants. A failed variant does not stop the others.
+/// The threads of each worker when `jobs` workers share the machine: max(1, cores / jobs).
+pub fn default_threads(jobs: usize) -> usize {
+    (std::thread::available_parallelism().map_or(1, |n| n.get()) / jobs.max(1)).max(1)
+}
+
+/// A rayon pool of `threads` threads: a worker's own cores, in which a variant's parallel
+/// loops run (`pool.install`).
+pub fn worker_pool(threads: usize) -> Result<rayon::ThreadPool> {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads.max(1))
+        .build()
+        .context("thread pool")
+}
+
+/// Runs every variant that is not complete on `jobs` workers, each a thread that runs its
+/// variants inside its own rayon pool of `threads` threads (so a worker is a fixed number
+/// of cores, as a cluster task is), then writes `summary.parquet` from the complete
+/// variants. A failed variant does not stop the others.
 pub fn run_study(
     study: &Study,
     layout: &Layout,
     jobs: usize,
+    threads: usize,
     progress: &dyn Progress,
 ) -> Result<StudyReport> {
     let next = AtomicUsize::new(0);
     let report = Mutex::new(StudyReport::default());
+    let workers = jobs.max(1).min(study.variants.len().max(1));
+    let pools = (0..workers)
+        .map(|_| worker_pool(threads))
+        .collect::<Result<Vec<_>>>()?;
     std::thread::scope(|s| {
-        for _ in 0..jobs.max(1).min(study.variants.len().max(1)) {
-            s.spawn(|| loop {
+        for pool in &pools {
+            let (next, report) = (&next, &report);
+            s.spawn(move || loop {
                 let k = next.fetch_add(1, Ordering::SeqCst);
                 let Some(v) = study.variants.get(k) else {
                     break;
                 };
                 let mut last = 0usize;
-                let r = run_variant(layout, v, &mut |done, _| {
-                    progress.periods(done.saturating_sub(last) as u64);
-                    last = done.max(last);
+                let r = pool.install(|| {
+                    run_variant(layout, v, &mut |done, _| {
+                        progress.periods(done.saturating_sub(last) as u64);
+                        last = done.max(last);
+                    })
                 });
                 let mut rep = report.lock().expect("no worker panics holding it");
                 match r {

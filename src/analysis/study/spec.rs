@@ -3,42 +3,51 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 
 /// A study file as written: a base scenario, fixed overrides, and the dimensions whose
-/// cartesian product are the variants (see the [module docs](super)).
-#[derive(Debug, Clone, Deserialize, Default)]
+/// cartesian product are the variants (see the [module docs](super)). Serialised, it is a
+/// study file again (what `caveflow calibrate` writes).
+#[derive(Debug, Clone, Deserialize, Serialize, Default)]
 #[serde(deny_unknown_fields)]
 pub struct StudyFile {
     /// The study's name: the `study=` partition value (default: the file's stem).
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub name: Option<String>,
     /// The base scenario, relative to the study file.
     pub scenario: PathBuf,
     /// `key=value` overrides applied to every variant, exactly as `run --set`.
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub set: Vec<String>,
     /// Grids: scenario key → the values to run (a TOML array). Dotted keys may be written
     /// quoted (`"calibration.frag_factor.urad" = [..]`) or as nested tables.
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "toml::Table::is_empty")]
     pub grid: toml::Table,
     /// Named alternatives: dimension → alternative name → input role → table path
     /// (relative to the study file). An empty alternative (`base = {}`) keeps the base
     /// scenario's tables.
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
     pub alternatives: BTreeMap<String, BTreeMap<String, BTreeMap<String, PathBuf>>>,
+    /// Cases: case name → its `key=value` overrides, as `set` (an explicit list of
+    /// variants, where a grid's product does not fit: `caveflow calibrate`'s runs).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cases: Option<BTreeMap<String, Vec<String>>>,
     /// Seeds: the scenario's `seed` of each repeat (default: the base scenario's seed only).
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub seeds: Option<Vec<u64>>,
+    /// Only the first N periods of every variant, as `run --keep-periods` (default: all).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub keep_periods: Option<usize>,
 }
 
 /// One problem with a study, displayed as `file: [rule] key: message`.
 ///
 /// Rules: `unreadable` (the study file), `toml-syntax`, `unknown-key` (in the study file or
 /// a grid, `set` or alternative key that is not a scenario key or input role),
-/// `wrong-type`, `setting-range` (a value out of range, by the scenario's own checks),
-/// `empty-grid` (a grid, alternative dimension or seed list with nothing in it),
-/// `grid-not-array`, `bad-name` (a study or variant name that cannot name a directory, or
+/// `wrong-type`, `setting-range` (a value out of range, by the scenario's own checks, or
+/// `keep_periods` below 1), `empty-grid` (a grid, alternative dimension, case list or seed
+/// list with nothing in it), `grid-not-array`, `bad-name` (a study, case or variant name
+/// that cannot name a directory, or
 /// two variants with one name), `missing-table` (an input table that does not exist),
 /// `bad-variant` (a variant whose tables or scene the loader refuses: the loader's own
 /// problem follows, with its file, row, column and rule).

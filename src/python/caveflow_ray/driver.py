@@ -3,7 +3,8 @@
 The study's expansion lives in Rust only: the driver asks ``caveflow study --plan STUDY``
 for the variants (name, hash, ...), skips those already complete (``OUT/variants/<name>/
 _SUCCESS`` holds the variant's hash), and submits one task per remaining variant, each
-running ``caveflow study STUDY --variant NAME --out OUT`` on whichever node Ray picks. The
+running ``caveflow study STUDY --variant NAME --out OUT --threads T`` (T: the task's CPUs,
+``--task-cpus``) on whichever node Ray picks. The
 tasks write the layout of the local runner (``OUT/dataset/<table>/study=<s>/scenario=<v>/``,
 ``OUT/variants/<v>/``), so ``OUT`` must be on a file system every node sees, and the
 study's files and the binary must be at the same paths on every node. When every task is
@@ -69,13 +70,15 @@ def is_complete(out: Path, variant: dict) -> bool:
         return False
 
 
-def run_variant(caveflow: str, study: str, out: str, name: str, kill_once: bool, kill_after: float) -> dict:
-    """One attempt at one variant (the body of the Ray task). Returns ``{"name", "code",
-    "seconds", "host"}`` for exit 0 and 1; raises :class:`TaskDied` for any other exit."""
+def run_variant(caveflow: str, study: str, out: str, name: str, threads: int, kill_once: bool,
+                kill_after: float) -> dict:
+    """One attempt at one variant (the body of the Ray task), on ``threads`` threads (the
+    task's CPUs). Returns ``{"name", "code", "seconds", "host"}`` for exit 0 and 1; raises
+    :class:`TaskDied` for any other exit."""
     logs = Path(out) / "ray"
     logs.mkdir(parents=True, exist_ok=True)
     log = logs / f"{name}.log"
-    cmd = [caveflow, "study", study, "--variant", name, "--out", out]
+    cmd = [caveflow, "study", study, "--variant", name, "--out", out, "--threads", str(threads)]
     t0 = time.monotonic()
     with open(log, "a") as f:
         f.write(f"attempt on {socket.gethostname()} pid {os.getpid()}: {' '.join(cmd)}\n")
@@ -107,7 +110,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--address", default=os.environ.get("RAY_ADDRESS"),
                     help="a Ray cluster to join (default: $RAY_ADDRESS, else a local one on 127.0.0.1)")
     ap.add_argument("--num-cpus", type=int, default=2, help="CPUs of the local cluster (default 2)")
-    ap.add_argument("--task-cpus", type=float, default=1.0, help="CPUs each task reserves (default 1)")
+    ap.add_argument("--task-cpus", type=float, default=1.0,
+                    help="CPUs each task reserves, and its caveflow's --threads (at least 1; default 1)")
     ap.add_argument("--max-retries", type=int, default=3, help="retries of a task that dies (default 3)")
     ap.add_argument("--kill-once", metavar="NAME", help="fault injection (tests): kill the first attempt of NAME")
     ap.add_argument("--kill-after", type=float, default=0.2, help="seconds before --kill-once kills (default 0.2)")
@@ -136,8 +140,9 @@ def main(argv: list[str] | None = None) -> int:
         task = ray.remote(num_cpus=a.task_cpus, max_retries=a.max_retries,
                           retry_exceptions=[TaskDied])(run_variant)
         t1 = time.monotonic()
-        refs = {task.remote(caveflow, str(study), str(out), v["name"], v["name"] == a.kill_once, a.kill_after):
-                v["name"] for v in todo}
+        threads = max(1, int(a.task_cpus))
+        refs = {task.remote(caveflow, str(study), str(out), v["name"], threads, v["name"] == a.kill_once,
+                            a.kill_after): v["name"] for v in todo}
         pending = list(refs)
         while pending:
             done, pending = ray.wait(pending, num_returns=1)
