@@ -1,6 +1,9 @@
-//! Calibration: fit inputs to production records by running the engine many times in
-//! parallel (rayon over runs) and reconciling each run (DESIGN §6; summary §8, where the
-//! Primos fragment size was found by trying 0.23 m and 0.04 m by hand).
+//! Calibration: fit inputs to production records by running the engine many times, a
+//! batch of independent runs at a time, and reconciling each run (DESIGN §6; summary §8,
+//! where the Primos fragment size was found by trying 0.23 m and 0.04 m by hand). Where a
+//! batch runs is the [`Runs`] given: [`InProcess`] (rayon over the runs), or a study
+//! ([`calibrate_runs`](super::calibrate_runs), what `caveflow calibrate` uses), with the
+//! same results.
 //!
 //! # What is fitted
 //! - a multiplicative factor f_z on the mean primary fragment size d̄ of each chosen
@@ -112,6 +115,10 @@ pub enum CalibrateError {
     /// Nothing to fit, or no rows matched.
     #[error("{0}")]
     Input(String),
+    /// The runs could not be made or read back (`calibrate_runs`: a study that failed, a
+    /// runner command that did).
+    #[error("calibration runs: {0}")]
+    Runs(String),
 }
 
 impl From<PolarsError> for CalibrateError {
@@ -199,7 +206,8 @@ pub struct CalibrationReport {
     pub resolution_adequate: bool,
     /// Rows compared.
     pub n: usize,
-    /// Engine runs made.
+    /// Engine runs the fit evaluated (`caveflow calibrate` reuses those its study layout
+    /// holds complete already, and says how many it ran).
     pub runs: usize,
     /// Whether the fit lowered the overall RMSE. A fit that does not is no calibration:
     /// it is reported, with its profiles, and no `calibrated.toml` is written.
@@ -238,7 +246,38 @@ fn rmse((s, n): (f64, usize)) -> f64 {
     }
 }
 
-/// The calibration problem: a scene loaded without calibration, the scenario, the records.
+/// One engine run of a calibration: the calibration tried, at h and the marker spacing
+/// `finer` times the ones the scene resolves to (1: as resolved; the increment and
+/// `max_marker_move` as resolved).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Trial {
+    /// The calibration tried.
+    pub calibration: Calibration,
+    /// h and the marker spacing, as multiples of the resolved ones.
+    pub finer: f64,
+}
+
+/// Where a calibration's engine runs are made. `predict` makes one batch (the runs of one
+/// step, independent of one another) and returns each trial's predictions, in order, as
+/// reconcile's `predicted` frame ([`predicted_frame`]).
+pub trait Runs: Sync {
+    /// The predictions of every trial of one batch.
+    fn predict(&self, p: &Problem, trials: &[Trial]) -> Result<Vec<DataFrame>, CalibrateError>;
+}
+
+/// The runs in this process, a batch in parallel on rayon's pool: the library's way, on a
+/// scene in memory. `caveflow calibrate` runs them as a study instead
+/// ([`calibrate_runs`](super::calibrate_runs)), with the same results.
+pub struct InProcess;
+
+impl Runs for InProcess {
+    fn predict(&self, p: &Problem, trials: &[Trial]) -> Result<Vec<DataFrame>, CalibrateError> {
+        trials.par_iter().map(|t| p.run_here(t)).collect()
+    }
+}
+
+/// The calibration problem: a scene loaded without calibration, the scenario, the records,
+/// and where the runs are made.
 pub struct Problem<'a> {
     /// The scene as read (no calibration applied).
     pub scene: &'a Scene,
@@ -250,35 +289,51 @@ pub struct Problem<'a> {
     pub drawpoints: &'a DataFrame,
     /// Grade fitted.
     pub grade: String,
+    /// Where the engine runs are made ([`InProcess`], or a study).
+    pub runs: &'a dyn Runs,
 }
 
 impl Problem<'_> {
-    /// Runs the engine with `cal` and reconciles it.
-    fn eval(&self, cal: &Calibration) -> Result<Eval, CalibrateError> {
-        self.eval_at(cal, 1.0)
-    }
-
-    /// [`Problem::eval`] with h and the marker spacing `finer` times the ones the scene
-    /// resolves to (the increment and `max_marker_move` as resolved).
-    fn eval_at(&self, cal: &Calibration, finer: f64) -> Result<Eval, CalibrateError> {
+    /// The scene with `cal` applied, and the scenario with it, as a run with `cal` sees
+    /// them.
+    pub fn calibrated(&self, cal: &Calibration) -> Result<(Scene, Scenario), CalibrateError> {
         let mut scene = self.scene.clone();
         cal.apply(&mut scene.blocks)
             .map_err(CalibrateError::Apply)?;
         let mut sc = self.scenario.clone();
         sc.calibration = cal.clone();
+        Ok((scene, sc))
+    }
+
+    /// The resolution of `t`'s run: h and the marker spacing `t.finer` times the ones its
+    /// calibrated scene resolves to, the increment and `max_marker_move` as resolved.
+    pub fn resolution(&self, t: &Trial) -> Result<ResolvedResolution, CalibrateError> {
+        let (scene, sc) = self.calibrated(&t.calibration)?;
         let r = crate::engine::resolution::resolve(&scene, &sc);
-        let res = ResolvedResolution {
-            layer_thickness: finer * r.layer_thickness,
-            marker_spacing: finer * r.marker_spacing,
+        Ok(ResolvedResolution {
+            layer_thickness: t.finer * r.layer_thickness,
+            marker_spacing: t.finer * r.marker_spacing,
             ..r
-        };
-        let plan = RunPlan::at(&scene, &sc, res).map_err(|source| CalibrateError::Engine {
-            calibration: describe(cal),
-            source,
+        })
+    }
+
+    /// Runs the engine for `t` here and returns its predictions.
+    fn run_here(&self, t: &Trial) -> Result<DataFrame, CalibrateError> {
+        let (scene, sc) = self.calibrated(&t.calibration)?;
+        let plan = RunPlan::at(&scene, &sc, self.resolution(t)?).map_err(|source| {
+            CalibrateError::Engine {
+                calibration: describe(&t.calibration),
+                source,
+            }
         })?;
         let out = Engine::with_plan(&scene, &sc, plan).run(&mut |_, _| {});
+        Ok(predicted_frame(&out.extraction, &scene)?)
+    }
+
+    /// Reconciles one run's predictions with the records.
+    fn evaluate(&self, predicted: DataFrame) -> Result<Eval, CalibrateError> {
         let frames = Frames {
-            predicted: predicted_frame(&out.extraction, &scene)?,
+            predicted,
             records: self.records.clone(),
             drawpoints: self.drawpoints.clone(),
         };
@@ -318,8 +373,24 @@ impl Problem<'_> {
         Ok(Eval { zones, all, rows })
     }
 
+    /// Runs the trials as one batch and reconciles each.
+    fn eval_trials(&self, trials: &[Trial]) -> Result<Vec<Eval>, CalibrateError> {
+        self.runs
+            .predict(self, trials)?
+            .into_par_iter()
+            .map(|f| self.evaluate(f))
+            .collect()
+    }
+
     fn eval_all(&self, cals: &[Calibration]) -> Result<Vec<Eval>, CalibrateError> {
-        cals.par_iter().map(|c| self.eval(c)).collect()
+        let trials: Vec<Trial> = cals
+            .iter()
+            .map(|c| Trial {
+                calibration: c.clone(),
+                finer: 1.0,
+            })
+            .collect();
+        self.eval_trials(&trials)
     }
 
     /// [`Problem::eval_all`] of `start` with the zones' factors at each of `ts`.
@@ -584,10 +655,10 @@ pub fn calibrate(
 
     // 4. The fitted values, run once more, and once more at finer markers (module docs,
     // "Resolution").
-    let finals = [(&cal, 1.0), (&cal, CHECK_RESOLUTION)]
-        .par_iter()
-        .map(|&(c, m)| p.eval_at(c, m))
-        .collect::<Result<Vec<_>, _>>()?;
+    let finals = p.eval_trials(&[1.0, CHECK_RESOLUTION].map(|finer| Trial {
+        calibration: cal.clone(),
+        finer,
+    }))?;
     tick(finals.len(), &mut runs);
     let (after, finer) = (&finals[0], &finals[1]);
     if after.all.1 == 0 {

@@ -15,6 +15,8 @@
 //! - [`report`]: the reconciliation as one self-contained HTML page with inline SVG charts;
 //! - [`calibrate`]: fit fragment-size, n1 and φ factors to production records by running
 //!   the engine many times in parallel;
+//! - [`calibrate_runs`]: `caveflow calibrate`'s runs as a study, locally or by an external
+//!   runner such as the Ray driver, resumable;
 //! - [`least_squares`]: the Levenberg–Marquardt step and the covariance of `calibrate`'s
 //!   joint fit of several zones.
 //!
@@ -24,6 +26,8 @@
 
 #[cfg(feature = "analysis")]
 pub mod calibrate;
+#[cfg(feature = "analysis")]
+pub mod calibrate_runs;
 pub mod least_squares;
 #[cfg(feature = "analysis")]
 pub mod reconcile;

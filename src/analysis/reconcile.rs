@@ -154,8 +154,19 @@ pub fn predicted_frame(ext: &Extraction, scene: &Scene) -> PolarsResult<DataFram
 
 /// Reads a run's `extraction.parquet` as the `predicted` frame.
 pub fn read_predicted(path: &Path, grades: &[String]) -> PolarsResult<DataFrame> {
+    predicted_of(read_parquet_frame(path)?, grades)
+}
+
+/// A Parquet file as a frame.
+pub fn read_parquet_frame(path: &Path) -> PolarsResult<DataFrame> {
     let file = std::fs::File::open(path)
         .map_err(|e| PolarsError::ComputeError(format!("{}: {e}", path.display()).into()))?;
+    ParquetReader::new(file).finish()
+}
+
+/// The `predicted` frame's columns of an extraction table (as `extraction_batch` writes
+/// it): drawpoint, period, tonnes, cum_tonnes and `grades`.
+pub fn predicted_of(extraction: DataFrame, grades: &[String]) -> PolarsResult<DataFrame> {
     let mut keep = vec![
         col("drawpoint"),
         col("period"),
@@ -163,11 +174,7 @@ pub fn read_predicted(path: &Path, grades: &[String]) -> PolarsResult<DataFrame>
         col("cum_tonnes"),
     ];
     keep.extend(grades.iter().map(|g| col(g.as_str())));
-    ParquetReader::new(file)
-        .finish()?
-        .lazy()
-        .select(keep)
-        .collect()
+    extraction.lazy().select(keep).collect()
 }
 
 /// The `drawpoints` frame.

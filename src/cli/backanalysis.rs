@@ -10,8 +10,10 @@ use polars::prelude::{col, lit, IntoLazy};
 
 use super::{keep_periods, load, progress, scenario, InputArgs, UsageError};
 use crate::analysis::calibrate::{self, CalibrateConfig, Problem};
+use crate::analysis::calibrate_runs::StudyRuns;
 use crate::analysis::reconcile::{self, records_frame, Frames, Settings};
 use crate::analysis::report::{write_report, ReportInfo};
+use crate::analysis::study::runner::default_threads;
 use crate::model::records::load_records;
 use crate::model::{Scenario, Scene};
 use crate::output::charts::{profile_chart, Profile};
@@ -65,9 +67,22 @@ pub struct CalibrateArgs {
     /// Grade fitted (default: the `[dilution]` grade, else the first grade sampled).
     #[arg(long)]
     pub grade: Option<String>,
-    /// Output directory for calibration.json, calibrated.toml and profiles.svg.
+    /// Output directory for calibration.json, calibrated.toml and profiles.svg, and
+    /// `runs/`, the engine runs as a study (`analysis::calibrate_runs`): a calibration
+    /// run again into it reruns none that are complete.
     #[arg(long, default_value = "calibrate")]
     pub out: PathBuf,
+    /// Runs made at once by the local runner (default: one per core).
+    #[arg(long, value_name = "N")]
+    pub jobs: Option<usize>,
+    /// Threads of each run (default: max(1, cores / N)).
+    #[arg(long, value_name = "T")]
+    pub threads: Option<usize>,
+    /// Run each batch of runs with this command instead of locally: `CMD STUDY --out DIR`
+    /// (split at spaces), e.g. `--runner "python -m caveflow_ray"`; `CAVEFLOW_BIN` is set
+    /// to this caveflow.
+    #[arg(long, value_name = "CMD")]
+    pub runner: Option<String>,
 }
 
 /// The scenario a run was made with, from its manifest.
@@ -231,12 +246,32 @@ pub(super) fn calibrate_cmd(a: CalibrateArgs) -> Result<ExitCode> {
         .filter(col("period").is_null().or(col("period").lt_eq(lit(last))))
         .collect()?;
     let drawpoints = reconcile::drawpoints_frame(&scene.drawpoints)?;
+    let jobs = a.jobs.unwrap_or_else(|| default_threads(1));
+    let command: Option<Vec<String>> = a
+        .runner
+        .as_deref()
+        .map(|c| c.split_whitespace().map(String::from).collect());
+    if jobs == 0 || a.threads == Some(0) || command.as_ref().is_some_and(|c| c.is_empty()) {
+        return Err(UsageError(
+            "--jobs and --threads must be at least 1, and --runner a command".into(),
+        )
+        .into());
+    }
+    let runs = StudyRuns::new(
+        &a.out.join("runs"),
+        &sc,
+        a.keep_periods,
+        jobs,
+        a.threads.unwrap_or_else(|| default_threads(jobs)),
+        command,
+    )?;
     let problem = Problem {
         scene,
         scenario: &sc,
         records: &records,
         drawpoints: &drawpoints,
         grade,
+        runs: &runs,
     };
     let bar = progress(0, "runs");
     let report = calibrate::calibrate(&problem, &cfg, &mut |done, total| {
@@ -285,6 +320,11 @@ pub(super) fn calibrate_cmd(a: CalibrateArgs) -> Result<ExitCode> {
         report.runs,
         report.model_noise,
         report.records_noise
+    );
+    let (ran, reused) = runs.counts();
+    println!(
+        "{ran} run(s) made, {reused} complete already in {}",
+        runs.dir().display()
     );
     if !report.resolution_adequate {
         eprintln!(

@@ -5,7 +5,9 @@
 //! thesis' own case, summary §8), its predicted grades multiplied by 1 + ε with ε ~ N(0, σ),
 //! σ = 5%.
 
-use caveflow::analysis::calibrate::{calibrate, CalibrateConfig, CalibrationReport, Problem};
+use caveflow::analysis::calibrate::{
+    calibrate, CalibrateConfig, CalibrationReport, InProcess, Problem,
+};
 use caveflow::analysis::reconcile::{
     drawpoints_frame, predicted_frame, reconcile, records_frame, Frames, Settings,
 };
@@ -18,7 +20,7 @@ use caveflow::model::{Scenario, Scene};
 use caveflow::output::records::write_records;
 use polars::prelude::*;
 
-use crate::fixtures::caveflow_in;
+use crate::fixtures::{caveflow_in, caveflow_out};
 
 /// The hidden truth: Urad fragments are 0.15 m, not the stated 0.23 m.
 const TRUE_FACTOR: f64 = 0.15 / 0.23;
@@ -78,6 +80,7 @@ fn fit(
         records: &records,
         drawpoints: &drawpoints,
         grade: "mo".into(),
+        runs: &InProcess,
     };
     calibrate(&problem, cfg, &mut |_, _| {}).unwrap()
 }
@@ -368,4 +371,112 @@ fn calibrate_recovers_three_zones_from_records_of_a_finer_run() {
     let (records, _) = synthetic(&scene, &fine, &truth);
     let report = fit(&scene, &sc, &records, &cfg);
     assert_recovers(&report, &truth);
+}
+
+/// The smallest calibration of these tests, as files in `dir`: the reduced demo's first 3
+/// periods (`scenario.toml` and its tables) and `records.csv` from a run at a Urad factor
+/// of 0.65. Returns the `caveflow calibrate` arguments (but `--out`) that fit Urad on them.
+pub(crate) fn calibration_files(dir: &std::path::Path) -> Vec<String> {
+    let (mut scene, sc) = reduced();
+    scene.keep_periods(3);
+    caveflow::output::inputs::write_scene(dir, &scene, &sc).unwrap();
+    let mut truth = Calibration::default();
+    truth.frag_factor.insert("urad".into(), 0.65);
+    let (records, _) = synthetic(&scene, &sc, &truth);
+    write_records(&dir.join("records.csv"), &records, &scene.drawpoints).unwrap();
+    let p = |f: &str| dir.join(f).display().to_string();
+    [
+        "calibrate",
+        &p("scenario.toml"),
+        "--records",
+        &p("records.csv"),
+        "--zones",
+        "urad",
+        "--coarse",
+        "0.6,1.0",
+    ]
+    .map(String::from)
+    .to_vec()
+}
+
+/// `caveflow calibrate args… --out out`, which must end with a calibration (exit 0, or 3
+/// when the fit does not lower the error); its stdout and `calibration.json`.
+pub(crate) fn calibrate_cli(
+    args: &[String],
+    out: &std::path::Path,
+    extra: &[&str],
+) -> (String, String) {
+    let mut all: Vec<&str> = args.iter().map(String::as_str).collect();
+    all.extend(["--out", out.to_str().unwrap()]);
+    all.extend(extra);
+    let r = caveflow_out(&all);
+    let stderr = String::from_utf8_lossy(&r.stderr);
+    assert!(matches!(r.status.code(), Some(0 | 3)), "{all:?}: {stderr}");
+    (
+        String::from_utf8_lossy(&r.stdout).into_owned(),
+        std::fs::read_to_string(out.join("calibration.json")).unwrap(),
+    )
+}
+
+/// `caveflow calibrate` makes its runs as a study (`analysis::calibrate_runs`) and reads
+/// their predictions back from its dataset: the same `calibration.json`, byte for byte, as
+/// the runs made in memory ([`InProcess`]) on the scene loaded from the same files. Run
+/// again into the same directory it makes no run (each is complete, by content hash) and
+/// writes the same file; a runner command that fails is an error that names it.
+#[test]
+fn calibrate_runs_as_a_study_fit_as_in_memory_and_resume() {
+    let dir = tempfile::tempdir().unwrap();
+    let args = calibration_files(dir.path());
+    let out = dir.path().join("calib");
+    let (stdout, json) = calibrate_cli(&args, &out, &[]);
+    eprintln!("{stdout}");
+    let made = |s: &str| {
+        s.lines()
+            .find_map(|l| l.split_once(" run(s) made, "))
+            .map(|(n, _)| n.parse::<usize>().unwrap())
+            .unwrap_or_else(|| panic!("no count of runs in {s}"))
+    };
+    let first = made(&stdout);
+    let report: serde_json::Value = serde_json::from_str(&json).unwrap();
+    let runs = report["runs"].as_u64().unwrap() as usize;
+    assert!(first > 0 && first <= runs, "{first} of {runs}");
+    assert!(out.join("runs/study.toml").exists() && out.join("runs/summary.parquet").exists());
+
+    // In memory, on the scene and records loaded as `calibrate` loads them.
+    let sc = Scenario::load(&dir.path().join("scenario.toml"), &[]).unwrap();
+    let mut raw = sc.clone();
+    raw.calibration = Calibration::default();
+    let scene = caveflow::model::load::load_scene(&raw).unwrap().scene;
+    let records = caveflow::model::records::load_records(
+        &dir.path().join("records.csv"),
+        &scene.drawpoints,
+        &scene.periods,
+        &scene.blocks.grade_names,
+    )
+    .unwrap();
+    let cfg = CalibrateConfig {
+        zones: vec!["urad".into()],
+        coarse: vec![0.6, 1.0],
+        ..CalibrateConfig::default()
+    };
+    let here = fit(&scene, &sc, &records, &cfg);
+    assert_eq!(serde_json::to_string_pretty(&here).unwrap(), json);
+
+    // Again: nothing run, the same file.
+    let (stdout, again) = calibrate_cli(&args, &out, &[]);
+    assert_eq!(made(&stdout), 0, "{stdout}");
+    assert!(
+        stdout.contains(&format!("0 run(s) made, {runs} complete already")),
+        "{stdout}"
+    );
+    assert_eq!(again, json);
+
+    // A runner that fails.
+    let mut all: Vec<&str> = args.iter().map(String::as_str).collect();
+    let failed = dir.path().join("failed");
+    all.extend(["--out", failed.to_str().unwrap(), "--runner", "false"]);
+    let r = caveflow_out(&all);
+    let stderr = String::from_utf8_lossy(&r.stderr);
+    assert_eq!(r.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("--runner false: exited with"), "{stderr}");
 }

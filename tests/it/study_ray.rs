@@ -280,3 +280,44 @@ fn duckdb_reads_the_tonnes_and_grades_of_the_summary_from_the_dataset() {
         );
     }
 }
+
+/// `caveflow calibrate --runner "PY -m caveflow_ray"`: every batch of the calibration's
+/// runs as Ray tasks of the same binary (`analysis::calibrate_runs`), read back from the
+/// same layout: the `calibration.json` of the local runner, byte for byte, on the smallest
+/// calibration of the back-analysis tests.
+#[test]
+fn calibrate_through_the_ray_driver_writes_the_calibration_of_the_local_runner() {
+    let Some(py) =
+        python("calibrate_through_the_ray_driver_writes_the_calibration_of_the_local_runner")
+    else {
+        return;
+    };
+    let tmp = tempfile::tempdir().unwrap();
+    let args = crate::backanalysis::calibration_files(tmp.path());
+    let (_, local) = crate::backanalysis::calibrate_cli(&args, &tmp.path().join("local"), &[]);
+    let ray = tmp.path().join("ray");
+    let runner = format!("{} -m caveflow_ray", py.display());
+    let _one = RAY.lock().unwrap_or_else(|e| e.into_inner());
+    let mut all: Vec<&str> = args.iter().map(String::as_str).collect();
+    all.extend(["--out", ray.to_str().unwrap(), "--runner", &runner]);
+    let r = Command::new(env!("CARGO_BIN_EXE_caveflow"))
+        .args(&all)
+        .env("PYTHONPATH", repo("src/python"))
+        .env_remove("RAY_ADDRESS")
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&r.stderr);
+    eprintln!(
+        "{}\n{}",
+        String::from_utf8_lossy(&r.stdout),
+        tail(&stderr, 30)
+    );
+    assert!(matches!(r.status.code(), Some(0 | 3)), "{stderr}");
+    assert!(stderr.contains("to run on Ray"), "the driver ran: {stderr}");
+    let logs = fs::read_dir(ray.join("runs/ray")).unwrap().count();
+    assert!(logs > 0, "the driver's task logs");
+    assert_eq!(
+        fs::read_to_string(ray.join("calibration.json")).unwrap(),
+        local
+    );
+}
