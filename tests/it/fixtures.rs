@@ -255,6 +255,15 @@ pub fn study_file(dir: &Path, body: &str) -> PathBuf {
     p
 }
 
+/// The tiny scene's files and a study of it with `body` ([`study_file`]) in a temporary
+/// folder; the folder, and the study file's path.
+pub fn tiny_study(body: &str) -> (TempDir, PathBuf) {
+    let tmp = TempDir::new().unwrap();
+    study_scene_files(tmp.path());
+    let path = study_file(tmp.path(), body);
+    (tmp, path)
+}
+
 /// Runs `scene` under `sc` to the end.
 pub fn run(scene: &Scene, sc: &Scenario) -> RunOutput {
     Engine::new(scene, sc).unwrap().run(&mut |_, _| {})

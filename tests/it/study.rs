@@ -13,7 +13,7 @@ use caveflow::analysis::study::{run_study, Layout, Outcome, Study, StudyProblems
 
 use crate::fixtures::{
     assert_same_study, caveflow, caveflow_out, entries, read_parquet, study_file,
-    study_scene_files, STUDY_GRID_ALT,
+    study_scene_files, tiny_study, STUDY_GRID_ALT,
 };
 
 struct Quiet;
@@ -506,10 +506,7 @@ fn the_cli_killed_mid_study_and_run_again_completes_every_variant_once() {
 /// `keep_periods`, the first periods of every variant.
 #[test]
 fn cases_are_variants_with_their_own_overrides() {
-    let tmp = tempfile::tempdir().unwrap();
-    study_scene_files(tmp.path());
-    let path = study_file(
-        tmp.path(),
+    let (tmp, path) = tiny_study(
         "keep_periods = 2\nseeds = [1, 2]\n[cases]\nslow = [\"flow.q=3.0\"]\nfine = [\"calibration.frag_factor.uniform=0.8\", \"flow.q=3.0\"]\n",
     );
     let s = Study::expand(&path).unwrap();
@@ -549,9 +546,8 @@ fn cases_are_variants_with_their_own_overrides() {
 /// variant an older one computed, and the periods kept; the same inputs give the same hash.
 #[test]
 fn the_variant_hash_covers_the_version_and_the_periods_kept() {
-    let tmp = tempfile::tempdir().unwrap();
-    study_scene_files(tmp.path());
-    let s = Study::expand(&study_file(tmp.path(), "")).unwrap();
+    let (tmp, path) = tiny_study("");
+    let s = Study::expand(&path).unwrap();
     let v = &s.variants[0];
     assert_eq!(v.name, "base");
     let hash = |keep, version| variant_hash(&v.scenario, &v.inputs, keep, version);
@@ -570,9 +566,7 @@ fn the_variant_hash_covers_the_version_and_the_periods_kept() {
 /// deterministic), and each variant's manifest records its worker's threads.
 #[test]
 fn workers_of_any_size_write_the_same_dataset() {
-    let tmp = tempfile::tempdir().unwrap();
-    study_scene_files(tmp.path());
-    let path = study_file(tmp.path(), STUDY_GRID_ALT);
+    let (tmp, path) = tiny_study(STUDY_GRID_ALT);
     let s = path.to_str().unwrap();
     let mut outs = Vec::new();
     for (jobs, threads) in [("1", "1"), ("2", "1"), ("2", "2"), ("1", "3")] {
