@@ -75,7 +75,8 @@ pub struct CalibrateArgs {
     /// Runs made at once by the local runner (default: one per core).
     #[arg(long, value_name = "N")]
     pub jobs: Option<usize>,
-    /// Threads of each run (default: max(1, cores / N)).
+    /// Threads of each run (default: every core, so that the last runs of a batch, alone,
+    /// use them all).
     #[arg(long, value_name = "T")]
     pub threads: Option<usize>,
     /// Run each batch of runs with this command instead of locally: `CMD STUDY --out DIR`
@@ -262,7 +263,7 @@ pub(super) fn calibrate_cmd(a: CalibrateArgs) -> Result<ExitCode> {
         &sc,
         a.keep_periods,
         jobs,
-        a.threads.unwrap_or_else(|| default_threads(jobs)),
+        a.threads.unwrap_or_else(|| default_threads(1)),
         command,
     )?;
     let problem = Problem {

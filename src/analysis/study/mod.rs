@@ -7,6 +7,7 @@
 //! scenario = "scenario.toml"     # the base scenario, relative to this file
 //! set = ["outputs.charts=false"] # overrides of every variant, as `run --set`
 //! seeds = [1, 2]                 # repeats: the scenario's `seed` (default: its own only)
+//! keep_periods = 12              # only the first N periods, as `run --keep-periods`
 //!
 //! [grid]                         # any scenario key: the values to run
 //! "calibration.frag_factor.urad" = [0.6, 1.0]
@@ -15,25 +16,35 @@
 //! [alternatives.schedule]        # a named dimension of alternatives that swap tables
 //! base = {}                      # the scenario's own tables
 //! slow = { schedule = "schedule_slow.csv" }  # role = path, relative to this file
+//!
+//! [cases]                        # named variants, each its own overrides
+//! coarse = ["resolution.marker_spacing=3.8"]
+//! fine = ["resolution.marker_spacing=1.9", "flow.q=3.0"]
 //! ```
 //!
 //! The variants are the cartesian product of the grids (in key order), the alternative
-//! dimensions (in name order) and the seeds, the first dimension varying slowest. Each
+//! dimensions (in name order), the cases (in name order: a list of variants where no grid's
+//! product fits, as `caveflow calibrate`'s runs, `analysis::calibrate_runs`) and the seeds,
+//! the first dimension varying slowest. Each
 //! grid value and each alternative becomes a `key=value` override of the base scenario,
 //! applied by `Scenario::load`, the very code of `run --set`: the same keys, the same
 //! types, the same range checks (a map entry such as `calibration.frag_factor.urad` too).
 //! An alternative's roles are the scenario's `inputs`: blocks, drawpoints, drawbells,
 //! schedule, periods, trace. A variant's name joins its choices' labels with `_`:
 //! `urad-0.6_schedule-slow_seed-1` (the key's last segment, or the whole key when two
-//! grids share it; `base` with no dimension at all).
+//! grids share it; a case's own name; `base` with no dimension at all). The summary has a
+//! column per grid key and per alternative dimension, and `case` for the cases.
 //!
 //! # Identity
 //!
-//! A variant is a pure function of its resolved scenario, its input files and its seed,
-//! and [`plan::variant_hash`] hashes exactly those: the scenario's JSON with input paths
-//! replaced by their roles and the output placement left out, each input file's SHA-256
-//! (as the run manifest and the checkpoint tag of `run` hash them) and the seed. The same
-//! tables at another path give the same hash; one changed byte gives another.
+//! A variant is a pure function of its resolved scenario, its input files, its seed, the
+//! periods kept and the caveflow that runs it, and [`plan::variant_hash`] hashes exactly
+//! those: the scenario's JSON with input paths replaced by their roles and the output
+//! placement left out, each input file's SHA-256 (as the run manifest and the checkpoint
+//! tag of `run` hash them), the seed, `keep_periods` when given, and caveflow's version
+//! (`CARGO_PKG_VERSION`, [`plan::VERSION`]): a binary of another version runs every variant
+//! again rather than skip one an older binary computed. The same tables at another path
+//! give the same hash; one changed byte gives another.
 //!
 //! # Layout
 //!
@@ -68,15 +79,19 @@
 //!
 //! # In parallel, here and elsewhere
 //!
-//! `--jobs N` runs N variants at once on worker threads. Each run's own parallel loops use
-//! rayon's one global pool (as many threads as cores), so N runs share the cores rather
-//! than multiply threads; a second run fills the serial stretches of the first (loading,
-//! IMZ growth between marker updates, writing). A lone demo run keeps 2 cores only about
-//! 1.3–1.75 busy (`time`: 127–175 % CPU), so the default is 2: measured on this project's
-//! shared 2-core machine, the 4-variant `data/study.toml` took 27.6 s with `--jobs 1`
-//! (127 % CPU) and 19.2 s with `--jobs 2` (187 %), 1.44× (best of three each; while another
-//! engineer's build held a core, both took 34–38 s). Memory: 133 MB at one job, 240 MB at
-//! two. More jobs than cores only adds memory.
+//! `--jobs N --threads T` runs N workers, each a thread that runs one variant at a time
+//! inside its own rayon pool of T threads (default max(1, cores / N)): a worker is a fixed
+//! number of cores, as a Ray task of `num_cpus = T` is (the Ray driver passes its tasks'
+//! CPUs as `--threads`). The engine is deterministic, so the dataset is the same byte for
+//! byte at any N and T. Measured on this project's shared 2-core machine, the 8 demo
+//! variants of `data/study.toml` × `flow.q = [3.0, 3.5]`, alternating, `uptime`'s load
+//! before each run: one worker (`--jobs 1 --threads 1`) 72.3, 77.4, 64.6 and 64.2 s; two
+//! (`--jobs 2 --threads 1`) 37.0, 63.5, 35.2 and 32.2 s: 1.95×, 1.83× and 1.99× where the
+//! two workers had both cores (182–196 % CPU; load 0.9–4.8), 1.22× in the one run where
+//! another engineer's build held a core (107 % CPU). A worker of one thread on a core of
+//! its own leaves nothing idle, where one variant's run keeps two cores only 1.3–1.75
+//! busy. Memory: 130–150 MB at one worker, 190–250 MB at two. More workers than cores
+//! only adds memory.
 //!
 //! `caveflow study --plan STUDY.toml` prints the expanded study as JSON (each variant's
 //! name, hash, `--set` list, input paths and hashes, seed, swept values): the one place the
