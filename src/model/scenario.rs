@@ -209,6 +209,10 @@ pub struct Outputs {
     pub imz_every_period: bool,
     /// Write charts (PNG) into the run directory.
     pub charts: bool,
+    /// Write `report.html`, the run report (`output::report::run`): the verdict, grade
+    /// charts, plan maps, sections through the draw, the mass balance and the resolution,
+    /// self-contained.
+    pub report: bool,
     /// Fragments finer than this are fines, m.
     pub fines_cutoff: f64,
     /// Periods at whose end the free-surface height field is written (empty: the last).
@@ -247,6 +251,7 @@ impl Default for Outputs {
             marker_periods: Vec::new(),
             imz_every_period: true,
             charts: true,
+            report: true,
             fines_cutoff: 0.01,
             surface_periods: Vec::new(),
             section_periods: Vec::new(),

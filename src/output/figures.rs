@@ -38,6 +38,7 @@ use super::charts::{
     fmt_mass, grade_tonnage_chart, iez_outline, imz_outline, section_chart, ChartError,
     GradeSeries, Section,
 };
+use super::dilution::dilution_entries;
 use crate::engine::result::{MarkerSnapshot, MarkerState, RunOutput, SurfaceTable};
 use crate::model::block_model::NO_BLOCK;
 use crate::model::{BlockModel, Scene};
@@ -694,6 +695,7 @@ fn tonnes_by(run: &RunOutput, n: usize, period: i64) -> Vec<f64> {
 ///   and HOD_prev the one at the end of the drawpoint's previous row (0 before its first).
 ///   Plotted at the period's cumulative tonnes; slices with no block (above the model, or a
 ///   missing block) give no point.
+/// - **Dilution entry** ([`dilution_entries`]), where the drawpoint reaches it.
 ///
 /// Series are named after the drawpoints and carry no sampled grades.
 pub fn grade_series(scene: &Scene, run: &RunOutput, g: usize) -> Vec<GradeSeries> {
@@ -702,12 +704,15 @@ pub fn grade_series(scene: &Scene, run: &RunOutput, g: usize) -> Vec<GradeSeries
     let Some(grades) = ex.grades.get(g) else {
         return Vec::new();
     };
+    let entries = dilution_entries(run, dp.len());
     let mut series: Vec<GradeSeries> = dp
         .name
         .iter()
-        .map(|name| GradeSeries {
+        .zip(entries)
+        .map(|(name, entry)| GradeSeries {
             name: name.clone(),
             block_grade: Some(Vec::new()),
+            dilution_entry: entry.is_finite().then_some(entry),
             ..GradeSeries::default()
         })
         .collect();
@@ -996,6 +1001,8 @@ mod tests {
             drawpoint: vec![0, 1, 0, 1, 0, 1],
             period: vec![1, 1, 2, 2, 3, 3],
             cum_tonnes: vec![0.01, 0.0, 0.02, 0.0, 0.03, 0.01],
+            tonnes: vec![0.01, 0.0, 0.01, 0.0, 0.01, 0.01],
+            dilution: vec![0.0, f64::NAN, 0.0, f64::NAN, 0.2, 0.0],
             markers: vec![5, 0, 4, 0, 6, 3],
             hod: vec![0.1, 0.0, 0.2, 0.0, 0.35, 0.1],
             grades: vec![vec![0.4, f64::NAN, 0.5, f64::NAN, 0.6, 0.3]],
@@ -1011,6 +1018,9 @@ mod tests {
         assert_eq!(a.name, "DP01");
         assert_eq!(a.cum_tonnes, [0.01, 0.02, 0.03]);
         assert_eq!(a.predicted, [0.4, 0.5, 0.6]);
+        // 10% waste between the midpoints of periods 2 (0.015 t, none) and 3 (0.025 t, 20%).
+        assert!((a.dilution_entry.unwrap() - 0.02).abs() < 1e-12);
+        assert_eq!(series[1].dilution_entry, None);
         let blocks = a.block_grade.as_ref().unwrap();
         let want = [(0.01, 0.05), (0.02, 0.15), (0.03, 0.275)];
         assert_eq!(blocks.len(), 3);
