@@ -130,7 +130,8 @@ pub struct RunArgs {
     #[arg(long)]
     pub massflow_reports: bool,
     /// Also write VTK files for ParaView into vtk/ (outputs.vtk): IMZ disks, markers, free
-    /// surface, IEZ and block model, with .pvd collections over the periods.
+    /// surface, IEZ and block model, with .pvd collections over the periods (the IMZ and the
+    /// surface at outputs.vtk_periods, by default the sections' moments).
     #[arg(long)]
     pub vtk: bool,
 }
@@ -460,7 +461,12 @@ fn run(a: RunArgs) -> Result<ExitCode> {
         Vec::new()
     };
     let vtk = if sc.outputs.vtk {
-        output::vtk::write_vtk(&dir.join("vtk"), scene, &out)?
+        output::vtk::write_vtk(
+            &dir.join("vtk"),
+            scene,
+            &out,
+            &scene.vtk_periods(&sc.outputs),
+        )?
     } else {
         Vec::new()
     };

@@ -242,6 +242,10 @@ pub struct Outputs {
     /// and the drawpoints, with `.pvd` collections that play the periods in order. Default
     /// false: they hold the markers again. `run --vtk` sets it.
     pub vtk: bool,
+    /// Periods whose IMZ disks and free surface the VTK export writes (`output::vtk`; the
+    /// markers follow `marker_periods`). Empty: the sections' moments (`section_periods`,
+    /// `Scene::vtk_periods`). A period the schedule lacks is refused (`unknown-period`).
+    pub vtk_periods: Vec<i64>,
 }
 
 impl Default for Outputs {
@@ -260,6 +264,7 @@ impl Default for Outputs {
             scenario_name: None,
             massflow: false,
             vtk: false,
+            vtk_periods: Vec::new(),
         }
     }
 }

@@ -1,6 +1,6 @@
 //! Fixtures shared by the test modules: the command under test, the demo's `data/`, the small
-//! valid scene of the input tests, a tiny box scene (and a study of it), runs and their
-//! comparison, Parquet files, and the check of a reported problem.
+//! valid scene of the input tests, a tiny box scene (and a study of it), the breakthrough
+//! columns, runs and their comparison, Parquet files, and the check of a reported problem.
 
 use std::fs;
 use std::path::{Path, PathBuf};
@@ -167,6 +167,32 @@ pub fn tiny() -> Scene {
         ..UniformBox::castro_isolated()
     }
     .scene()
+}
+
+/// Uniform Castro box of height `height`, `width` square, an isolated 120 mm drawpoint at
+/// the centre drawing `tonnes` in each of `periods`: the columns the surface-cone and VTK
+/// tests draw through breakthrough.
+pub fn cone_column(width: f64, height: f64, periods: usize, tonnes: f64) -> Scene {
+    UniformBox {
+        extent: [width, width, height],
+        drawpoints: vec![(0.0, 0.0, 0.12)],
+        periods,
+        tonnes,
+        ..UniformBox::castro_isolated()
+    }
+    .scene()
+}
+
+/// The scenario of a [`cone_column`]: marker spacing `s`, disks 2 s thick, draw increment
+/// `inc`, rilling on, the IMZ and the free surface at every period and the markers at the
+/// last.
+pub fn cone_scenario(periods: usize, s: f64, inc: f64) -> Scenario {
+    let mut sc = scenario(2.0 * s, s, inc);
+    sc.mechanisms.rilling = true;
+    sc.outputs.imz_every_period = true;
+    sc.outputs.surface_periods = (1..=periods as i64).collect();
+    sc.outputs.marker_periods = vec![periods as i64];
+    sc
 }
 
 /// The tiny scene's tables and scenario (charts off) in `dir`, plus `schedule_alt.csv`: the
