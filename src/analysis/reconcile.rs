@@ -50,6 +50,9 @@ pub enum ReconcileError {
     /// Drawing a chart failed.
     #[error(transparent)]
     Chart(#[from] crate::output::charts::ChartError),
+    /// A chart could not be read back to embed in the report.
+    #[error(transparent)]
+    Embed(#[from] crate::output::report::EmbedError),
     /// Writing the report failed.
     #[error("{}: {source}", path.display())]
     Io {

@@ -7,7 +7,6 @@
 //! under uniform drawdown (summary Figs 31–32); the zone table; every drawpoint, worst first;
 //! and what each number means. The charts are also left beside the page as SVG files.
 
-use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use polars::prelude::*;
@@ -15,9 +14,11 @@ use polars::prelude::*;
 use super::reconcile::{floats, strings, ReconcileError, Reconciliation};
 use crate::model::Scene;
 use crate::output::charts::{
-    error_map_chart, grade_tonnage_chart, scatter_chart, GradeSeries, MapPoint, ScatterPoint,
+    grade_tonnage_chart, plan_map_chart, scatter_chart, GradeSeries, MapPoint, MapScale,
+    ScatterPoint,
 };
 use crate::output::parquet::write_atomic;
+use crate::output::report::{num, Page};
 
 /// Drawpoints shown on the first grade chart: those with the largest RMSE.
 pub const WORST_SHOWN: usize = 12;
@@ -96,25 +97,6 @@ pub fn block_grade_curves(scene: &Scene, grade: usize) -> Vec<Vec<(f64, f64)>> {
         .collect()
 }
 
-/// Escapes text for HTML.
-fn esc(s: &str) -> String {
-    s.replace('&', "&amp;")
-        .replace('<', "&lt;")
-        .replace('>', "&gt;")
-        .replace('"', "&quot;")
-}
-
-/// A number for a table cell: 4 significant decimals, "–" when missing.
-fn num(v: f64) -> String {
-    if !v.is_finite() {
-        "–".into()
-    } else if v.abs() >= 1000.0 {
-        format!("{v:.0}")
-    } else {
-        format!("{v:.4}")
-    }
-}
-
 /// The metrics rows of one level for `grade`, sorted by RMSE (largest first).
 fn level_rows(r: &Reconciliation, level: &str, grade: &str) -> PolarsResult<DataFrame> {
     r.metrics
@@ -128,15 +110,6 @@ fn level_rows(r: &Reconciliation, level: &str, grade: &str) -> PolarsResult<Data
                 .with_nulls_last(true),
         )
         .collect()
-}
-
-/// An SVG file's `<svg …>…</svg>` element, to inline.
-fn inline_svg(path: &Path) -> Result<String, ReconcileError> {
-    let s = std::fs::read_to_string(path).map_err(|source| ReconcileError::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
-    Ok(s.find("<svg").map_or(s.clone(), |at| s[at..].to_string()))
 }
 
 /// Writes `report.html` and its charts (`charts/*.svg`) into `dir`; returns the page's path.
@@ -200,11 +173,12 @@ pub fn write_report(
         })
         .collect();
     let map = charts.join("bias_map.svg");
-    error_map_chart(
+    plan_map_chart(
         &map,
         &map_points,
         "Bias per drawpoint (predicted − sampled)",
         &label,
+        MapScale::Diverging,
     )?;
 
     // Grade curves: the worst drawpoints first, then all of them.
@@ -222,6 +196,7 @@ pub fn write_report(
             block_grade: blocks
                 .as_ref()
                 .and_then(|b| sd.find(name).map(|d| b[d].clone())),
+            dilution_entry: None,
         }
     };
     let worst: Vec<GradeSeries> = dp_names
@@ -283,28 +258,9 @@ fn page(
     grade_charts: &[(String, Vec<PathBuf>)],
 ) -> Result<String, ReconcileError> {
     let g = info.grade.as_str();
-    let mut h = String::new();
-    let _ = write!(
-        h,
-        "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">\
-         <title>{title}</title><style>\
-         body{{font-family:sans-serif;margin:24px auto;max-width:1400px;color:#222}}\
-         h1{{margin-bottom:4px}} .src{{color:#666;font-size:13px}}\
-         .cards{{display:flex;flex-wrap:wrap;gap:12px;margin:16px 0}}\
-         .card{{border:1px solid #ddd;border-radius:6px;padding:8px 14px;min-width:110px}}\
-         .card b{{display:block;font-size:22px}} .card span{{color:#666;font-size:12px}}\
-         .row{{display:flex;flex-wrap:wrap;gap:16px}} svg{{max-width:100%;height:auto}}\
-         table{{border-collapse:collapse;font-size:13px}} td,th{{border-bottom:1px solid #eee;\
-         padding:3px 8px;text-align:right}} th{{background:#f6f6f6}} td:first-child,\
-         th:first-child{{text-align:left}}</style></head><body>\n<h1>{title}</h1>\n",
-        title = esc(&info.title)
-    );
-    for s in &info.sources {
-        let _ = writeln!(h, "<div class=\"src\">{}</div>", esc(s));
-    }
-    let _ = writeln!(h, "<p><b>{}</b></p>", esc(&verdict(r, g)));
-    h.push_str("<div class=\"cards\">");
-    for (name, key, unit) in [
+    let mut p = Page::new(&info.title, &info.sources);
+    p.verdict(&verdict(r, g));
+    let cards: Vec<(String, String)> = [
         ("rows compared", "n", ""),
         ("bias", "bias", "%"),
         ("tonnage-weighted error", "tw_error", "%"),
@@ -312,57 +268,62 @@ fn page(
         ("RMSE", "rmse", "%"),
         ("correlation r", "correlation", ""),
         ("dilution entry, predicted − sampled", "de_difference", " t"),
-    ] {
+    ]
+    .into_iter()
+    .map(|(name, key, unit)| {
         let v = r.metric("overall", "all", g, key).unwrap_or(f64::NAN);
         let shown = match key {
             "n" => format!("{v:.0}"),
             "de_difference" if v.is_finite() => format!("{v:+.0}"),
             _ => num(v),
         };
-        let _ = write!(
-            h,
-            "<div class=\"card\"><b>{shown}{}</b><span>{}</span></div>",
-            if v.is_finite() { unit } else { "" },
-            esc(name)
-        );
-    }
-    h.push_str("</div>\n<div class=\"row\">");
-    for p in side_by_side {
-        let _ = write!(h, "<div>{}</div>", inline_svg(p)?);
-    }
-    h.push_str("</div>\n");
+        let unit = if v.is_finite() { unit } else { "" };
+        (format!("{shown}{unit}"), name.to_string())
+    })
+    .collect();
+    p.cards(&cards);
+    p.charts(
+        &side_by_side
+            .iter()
+            .map(PathBuf::as_path)
+            .collect::<Vec<_>>(),
+    )?;
     for (title, pages) in grade_charts {
-        let _ = writeln!(h, "<h2>{}</h2>", esc(title));
-        h.push_str(
-            "<p class=\"src\">Predicted grade (line) and sampled grade (points) against \
-             cumulative tonnes; dashed: the block grade if the ground above the drawpoint \
-             were drawn down uniformly.</p>",
+        p.heading(title);
+        p.note(
+            "Predicted grade (line) and sampled grade (points) against cumulative tonnes; \
+             dashed: the block grade if the ground above the drawpoint were drawn down \
+             uniformly.",
         );
-        for p in pages {
-            let _ = write!(h, "<div>{}</div>", inline_svg(p)?);
+        for c in pages {
+            p.charts(&[c])?;
         }
     }
-    h.push_str("<h2>Zones</h2>");
-    table(&mut h, zones, "zone");
-    h.push_str("<h2>Drawpoints, largest RMSE first</h2>");
-    table(&mut h, dps, "drawpoint");
-    h.push_str(
-        "<h2>What the numbers mean</h2><ul>\
-         <li>error = predicted − sampled grade of a drawpoint-period (% by mass); \
-         <b>bias</b> is its mean, <b>MAE</b> the mean of its size, <b>RMSE</b> the root of \
-         its mean square.</li>\
-         <li><b>tonnage-weighted error</b>: Σ tonnes × error / Σ tonnes, the metal the \
-         model over- or under-calls per tonne produced.</li>\
-         <li><b>r</b>: Pearson correlation of predicted and sampled grades.</li>\
-         <li><b>dilution entry</b>: cumulative tonnes at which the grade first falls below \
-         the cutoff; negative differences mean the model dilutes too early.</li></ul>\
-         </body></html>\n",
-    );
-    Ok(h)
+    p.heading("Zones");
+    table(&mut p, zones, "zone");
+    p.heading("Drawpoints, largest RMSE first");
+    table(&mut p, dps, "drawpoint");
+    p.heading("What the numbers mean");
+    p.glossary(&[
+        (
+            "error",
+            "predicted − sampled grade of a drawpoint-period (% by mass); bias is its mean, MAE the mean of its size, RMSE the root of its mean square",
+        ),
+        (
+            "tonnage-weighted error",
+            "Σ tonnes × error / Σ tonnes, the metal the model over- or under-calls per tonne produced",
+        ),
+        ("r", "Pearson correlation of predicted and sampled grades"),
+        (
+            "dilution entry",
+            "cumulative tonnes at which the grade first falls below the cutoff; negative differences mean the model dilutes too early",
+        ),
+    ]);
+    Ok(p.finish())
 }
 
 /// A metrics table: one row per key.
-fn table(h: &mut String, df: &DataFrame, what: &str) {
+fn table(p: &mut Page, df: &DataFrame, what: &str) {
     let keys = strings(df, "key");
     let cols = [
         ("n", "n"),
@@ -376,27 +337,24 @@ fn table(h: &mut String, df: &DataFrame, what: &str) {
         ("de_difference", "DE diff (t)"),
     ];
     let values: Vec<Vec<f64>> = cols.iter().map(|(c, _)| floats(df, c)).collect();
-    let _ = write!(h, "<table><tr><th>{}</th>", esc(what));
-    for (_, title) in cols {
-        let _ = write!(h, "<th>{}</th>", esc(title));
-    }
-    h.push_str("</tr>");
-    for (k, key) in keys.iter().enumerate() {
-        let _ = write!(
-            h,
-            "<tr><td>{}</td>",
-            esc(if key.is_empty() { "(none)" } else { key })
-        );
-        for (c, v) in values.iter().enumerate() {
-            // n and the dilution-entry tonnes are whole numbers.
-            let cell = if (c == 0 || c == cols.len() - 1) && v[k].is_finite() {
-                format!("{:.0}", v[k])
-            } else {
-                num(v[k])
-            };
-            let _ = write!(h, "<td>{cell}</td>");
-        }
-        h.push_str("</tr>");
-    }
-    h.push_str("</table>\n");
+    let header: Vec<&str> = std::iter::once(what)
+        .chain(cols.iter().map(|(_, t)| *t))
+        .collect();
+    let rows: Vec<Vec<String>> = keys
+        .iter()
+        .enumerate()
+        .map(|(k, key)| {
+            let mut row = vec![if key.is_empty() { "(none)" } else { key }.to_string()];
+            row.extend(values.iter().enumerate().map(|(c, v)| {
+                // n and the dilution-entry tonnes are whole numbers.
+                if (c == 0 || c == cols.len() - 1) && v[k].is_finite() {
+                    format!("{:.0}", v[k])
+                } else {
+                    num(v[k])
+                }
+            }));
+            row
+        })
+        .collect();
+    p.table(&header, &rows);
 }

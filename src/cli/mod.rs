@@ -130,7 +130,8 @@ pub struct RunArgs {
     #[arg(long)]
     pub massflow_reports: bool,
     /// Also write VTK files for ParaView into vtk/ (outputs.vtk): IMZ disks, markers, free
-    /// surface, IEZ and block model, with .pvd collections over the periods.
+    /// surface, IEZ and block model, with .pvd collections over the periods (the IMZ and the
+    /// surface at outputs.vtk_periods, by default the sections' moments).
     #[arg(long)]
     pub vtk: bool,
 }
@@ -448,14 +449,9 @@ fn run(a: RunArgs) -> Result<ExitCode> {
     )?;
     bar.finish_and_clear();
     let command = std::env::args().collect::<Vec<_>>().join(" ");
+    let moments = scene.moments(&sc.outputs.section_periods);
     let charts = if sc.outputs.charts {
-        output::figures::write_run_charts(
-            dir,
-            scene,
-            &out,
-            None,
-            &scene.moments(&sc.outputs.section_periods),
-        )?
+        output::figures::write_run_charts(dir, scene, &out, None, &moments)?
     } else {
         Vec::new()
     };
@@ -465,7 +461,12 @@ fn run(a: RunArgs) -> Result<ExitCode> {
         Vec::new()
     };
     let vtk = if sc.outputs.vtk {
-        output::vtk::write_vtk(&dir.join("vtk"), scene, &out)?
+        output::vtk::write_vtk(
+            &dir.join("vtk"),
+            scene,
+            &out,
+            &scene.vtk_periods(&sc.outputs),
+        )?
     } else {
         Vec::new()
     };
@@ -487,6 +488,19 @@ fn run(a: RunArgs) -> Result<ExitCode> {
         .as_ref()
         .and_then(|p| p.file_stem())
         .map_or("run".to_string(), |s| s.to_string_lossy().into_owned());
+    let report = if sc.outputs.report {
+        let r = output::report::RunReport {
+            name: &name,
+            scene,
+            run: &out,
+            manifest: &manifest,
+            charts: &charts,
+            moments: &moments,
+        };
+        Some(output::report::write_run_report(dir, &r)?)
+    } else {
+        None
+    };
     let hive = output::dataset::HiveLayout::new(&sc, &name, scene.periods.len());
     let files = output::write_run_with(dir, scene, out, &manifest, hive.as_ref())?;
     // The outputs are complete: the checkpoint has served.
@@ -503,10 +517,13 @@ fn run(a: RunArgs) -> Result<ExitCode> {
     );
     println!(
         "wrote {} files and {} charts to {}",
-        files.len() + massflow.len() + vtk.len(),
+        files.len() + massflow.len() + vtk.len() + usize::from(report.is_some()),
         charts.len(),
         dir.display()
     );
+    if let Some(page) = report {
+        println!("report: {}", page.display());
+    }
     Ok(ExitCode::SUCCESS)
 }
 

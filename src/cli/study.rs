@@ -10,7 +10,7 @@ use clap::Args;
 use crate::analysis::study::runner::{
     default_threads, run_variant, stale_variants, worker_pool, write_study_summary, Progress,
 };
-use crate::analysis::study::{run_study, Layout, Outcome, Study};
+use crate::analysis::study::{run_study, write_study_report, Layout, Outcome, Study};
 
 /// `caveflow study`.
 #[derive(Debug, Args)]
@@ -130,13 +130,15 @@ pub fn study_cmd(a: StudyArgs) -> Result<ExitCode> {
     let progress = Bar { bar, terminal };
     let report = run_study(&study, &layout, a.jobs, threads, &progress)?;
     progress.bar.finish_and_clear();
+    let page = write_study_report(&study, &layout, &report.rows)?;
     println!(
-        "{} ran, {} complete already, {} failed; wrote {} ({} rows) and {}",
+        "{} ran, {} complete already, {} failed; wrote {} ({} rows), {} and {}",
         report.ran.len(),
         report.skipped.len(),
         report.failed.len(),
         layout.summary().display(),
         report.rows.len(),
+        page.display(),
         layout.dir.join("dataset").display()
     );
     warn_stale(&study, &layout);
@@ -175,11 +177,13 @@ fn summary_only(a: &StudyArgs, study: &Study) -> Result<ExitCode> {
         .map(|v| v.name.as_str())
         .collect();
     let rows = write_study_summary(study, &layout)?;
+    let page = write_study_report(study, &layout, &rows)?;
     println!(
-        "{} of {} variant(s) complete; wrote {}",
+        "{} of {} variant(s) complete; wrote {} and {}",
         rows.len(),
         study.variants.len(),
-        layout.summary().display()
+        layout.summary().display(),
+        page.display()
     );
     warn_stale(study, &layout);
     if missing.is_empty() {

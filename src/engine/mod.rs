@@ -162,8 +162,8 @@ pub struct Engine<'a> {
     block_mass: Vec<f64>,
     /// The trace points (`trace`; none unless [`Engine::with_trace`]).
     trace: trace::Trace,
-    /// The periods whose free surface the charts' sections through time need
-    /// (`Scene::moments`).
+    /// The periods whose free surface the charts' sections through time and the VTK export
+    /// need (`Scene::moments`, `Scene::vtk_periods`).
     moments: Vec<i64>,
 }
 
@@ -274,7 +274,12 @@ impl<'a> Engine<'a> {
             block_mass: vec![0.0; bm.len()],
             cadence,
             trace: trace::Trace::default(),
-            moments: scene.moments(&scenario.outputs.section_periods),
+            moments: {
+                let o = &scenario.outputs;
+                let mut m = scene.moments(&o.section_periods);
+                m.extend(scene.vtk_periods(o));
+                m
+            },
         }
     }
 

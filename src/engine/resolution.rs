@@ -149,6 +149,16 @@ pub fn spacing_multiple(target: f64) -> f64 {
         .clamp(SPACING_MULT.0, SPACING_MULT.1)
 }
 
+/// What the rule says of a resolution: its marker spacing as a multiple m of the scene's
+/// default spacing (at the resolution's own h), and the whole-draw grade RMSE per
+/// drawpoint-period the sweep's fit gives that multiple, E = [`E_DEFAULT`] ×
+/// m^[`SPACING_EXPONENT`] (relative; fitted on the demo, so an estimate elsewhere).
+pub fn expected_grade_rmse(scene: &Scene, res: &ResolvedResolution) -> (f64, f64) {
+    let (_, min_block, _, _) = scene_default(scene);
+    let m = res.marker_spacing / default_spacing(scene, res.layer_thickness, min_block);
+    (m, E_DEFAULT * m.powf(SPACING_EXPONENT))
+}
+
 /// Median over drawpoints of the distance to the nearest other drawpoint (NaN with fewer
 /// than two).
 fn drawpoint_spacing(scene: &Scene) -> f64 {

@@ -362,8 +362,9 @@ pub struct RunOutput {
     pub air_gap: AirGapTable,
     /// Free surface at the chosen periods.
     pub surface: SurfaceTable,
-    /// Free surface at the charts' moments (`Scene::moments`) that `surface` does not hold,
-    /// for the sections through time only (not written as a table). Read without bringing
+    /// Free surface at the charts' moments (`Scene::moments`) and the VTK export's periods
+    /// (`Scene::vtk_periods`) that `surface` does not hold, for the sections through time
+    /// and the VTK files only (not written as a table). Read without bringing
     /// the lagging markers up to date (`engine::cadence`), so it is within
     /// `max_marker_move` of the exact surface, and charting a moment never changes a run.
     pub moment_surface: SurfaceTable,

@@ -28,6 +28,14 @@ impl Periods {
     pub fn find(&self, id: i64) -> Option<usize> {
         self.id.binary_search(&id).ok()
     }
+    /// The first and last period numbers, `1–24`, or `none`: what a message about a period
+    /// that is not one of them shows.
+    pub fn span(&self) -> String {
+        match (self.id.first(), self.id.last()) {
+            (Some(a), Some(b)) => format!("{a}–{b}"),
+            _ => "none".to_string(),
+        }
+    }
     /// Index of the period that holds `day` (days since 1970-01-01), when the periods have
     /// start dates; None before the first, after the last or in a gap between two.
     pub fn at_day(&self, day: f64) -> Option<usize> {

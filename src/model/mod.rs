@@ -80,4 +80,17 @@ impl Scene {
         out.dedup();
         out
     }
+
+    /// The periods the VTK export writes the IMZ disks and the free surface at
+    /// (`output::vtk`): `outputs.vtk_periods` where given (periods the schedule lacks, as after
+    /// `--keep-periods`, are left out; `model::load` refuses those of the full schedule), else
+    /// the sections' moments, [`Scene::moments`] of `outputs.section_periods`. Ascending,
+    /// without repeats.
+    pub fn vtk_periods(&self, outputs: &scenario::Outputs) -> Vec<i64> {
+        self.moments(if outputs.vtk_periods.is_empty() {
+            &outputs.section_periods
+        } else {
+            &outputs.vtk_periods
+        })
+    }
 }

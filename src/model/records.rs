@@ -250,10 +250,7 @@ fn check_records(
         .enumerate()
         .map(|(i, n)| (n.as_str(), i))
         .collect();
-    let span = match (periods.id.first(), periods.id.last()) {
-        (Some(a), Some(b)) => format!("{a}–{b}"),
-        _ => "none".to_string(),
-    };
+    let span = periods.span();
     let mut r = ProductionRecords {
         file: file.clone(),
         grade_names: grade_cols

@@ -209,6 +209,10 @@ pub struct Outputs {
     pub imz_every_period: bool,
     /// Write charts (PNG) into the run directory.
     pub charts: bool,
+    /// Write `report.html`, the run report (`output::report::run`): the verdict, grade
+    /// charts, plan maps, sections through the draw, the mass balance and the resolution,
+    /// self-contained.
+    pub report: bool,
     /// Fragments finer than this are fines, m.
     pub fines_cutoff: f64,
     /// Periods at whose end the free-surface height field is written (empty: the last).
@@ -238,6 +242,10 @@ pub struct Outputs {
     /// and the drawpoints, with `.pvd` collections that play the periods in order. Default
     /// false: they hold the markers again. `run --vtk` sets it.
     pub vtk: bool,
+    /// Periods whose IMZ disks and free surface the VTK export writes (`output::vtk`; the
+    /// markers follow `marker_periods`). Empty: the sections' moments (`section_periods`,
+    /// `Scene::vtk_periods`). A period the schedule lacks is refused (`unknown-period`).
+    pub vtk_periods: Vec<i64>,
 }
 
 impl Default for Outputs {
@@ -247,6 +255,7 @@ impl Default for Outputs {
             marker_periods: Vec::new(),
             imz_every_period: true,
             charts: true,
+            report: true,
             fines_cutoff: 0.01,
             surface_periods: Vec::new(),
             section_periods: Vec::new(),
@@ -255,6 +264,7 @@ impl Default for Outputs {
             scenario_name: None,
             massflow: false,
             vtk: false,
+            vtk_periods: Vec::new(),
         }
     }
 }

@@ -38,6 +38,7 @@ use super::charts::{
     fmt_mass, grade_tonnage_chart, iez_outline, imz_outline, section_chart, ChartError,
     GradeSeries, Section,
 };
+use super::dilution::dilution_entries;
 use crate::engine::result::{MarkerSnapshot, MarkerState, RunOutput, SurfaceTable};
 use crate::model::block_model::NO_BLOCK;
 use crate::model::{BlockModel, Scene};
@@ -278,26 +279,8 @@ pub fn drawdown_section(
         section.layers = layers(lat, snap, y, spacing);
     }
 
-    // The free surface of the period along the lattice row nearest the section (the
-    // surface table's where it holds the period, else the one kept for the charts).
-    let at = |t: &SurfaceTable| (0..t.z.len()).filter(|&k| t.period[k] == period).collect();
-    let mut sf = &run.surface;
-    let mut rows: Vec<usize> = at(sf);
-    if rows.is_empty() {
-        sf = &run.moment_surface;
-        rows = at(sf);
-    }
-    let nearest = rows
-        .iter()
-        .map(|&k| (sf.y[k] - y).abs())
-        .fold(f64::INFINITY, f64::min);
-    let mut line: Vec<(f64, f64)> = rows
-        .iter()
-        .filter(|&&k| (sf.y[k] - y).abs() <= nearest + 1e-9)
-        .map(|&k| (sf.x[k], sf.z[k]))
-        .collect();
-    line.sort_by(|a, b| a.0.total_cmp(&b.0));
-    section.surface = line;
+    // The free surface of the period along the lattice row nearest the section.
+    section.surface = FreeSurface::of(run, period).section(y);
     if let Some([_, j, _]) = bm.cell([bm.origin[0], y, bm.origin[2]]) {
         let block = |i: usize, k: usize| {
             let b = bm.index[i + bm.dims[0] * (j + bm.dims[1] * k)];
@@ -384,6 +367,92 @@ pub fn drawdown_section(
         ));
     }
     section
+}
+
+/// The free surface of one period as the sections and the VTK export read it: the rows of
+/// `run.surface` at the period where it holds the period, else those of
+/// `run.moment_surface` (the engine keeps the surface at the charts' moments and the VTK
+/// periods there), grouped by lattice row.
+#[derive(Debug, Clone, Default)]
+pub struct FreeSurface {
+    /// Per lattice row, Northing ascending: its Northing and its (Easting, elevation)
+    /// points, Easting ascending.
+    rows: Vec<(f64, Vec<(f64, f64)>)>,
+}
+
+impl FreeSurface {
+    /// The surface table that holds `period` and its rows at `period` (none: the run did
+    /// not keep the surface of that period).
+    pub fn table(run: &RunOutput, period: i64) -> (&SurfaceTable, Vec<usize>) {
+        let at = |t: &SurfaceTable| (0..t.z.len()).filter(|&k| t.period[k] == period).collect();
+        let rows: Vec<usize> = at(&run.surface);
+        if rows.is_empty() {
+            (&run.moment_surface, at(&run.moment_surface))
+        } else {
+            (&run.surface, rows)
+        }
+    }
+
+    /// The free surface of `period` in `run` ([`FreeSurface::table`]).
+    pub fn of(run: &RunOutput, period: i64) -> FreeSurface {
+        let (t, rows) = Self::table(run, period);
+        let mut points: Vec<(f64, f64, f64)> = rows
+            .iter()
+            .map(|&k| (t.y[k], t.x[k], t.z[k]))
+            .filter(|p| p.0.is_finite() && p.1.is_finite() && p.2.is_finite())
+            .collect();
+        // Stable: points of one Easting keep the table's order.
+        points.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)));
+        let mut out = FreeSurface::default();
+        for (y, x, z) in points {
+            match out.rows.last_mut() {
+                Some((ry, line)) if *ry == y => line.push((x, z)),
+                _ => out.rows.push((y, vec![(x, z)])),
+            }
+        }
+        out
+    }
+
+    /// The surface along the lattice row nearest the Northing `y` (both rows where `y`
+    /// lies halfway between two), Easting ascending: what a section at `y` draws and cuts
+    /// the IMZ outlines at ([`below_surface`]). Empty without a surface.
+    pub fn section(&self, y: f64) -> Vec<(f64, f64)> {
+        let nearest = self
+            .rows
+            .iter()
+            .map(|r| (r.0 - y).abs())
+            .fold(f64::INFINITY, f64::min);
+        let mut line: Vec<(f64, f64)> = self
+            .rows
+            .iter()
+            .filter(|r| (r.0 - y).abs() <= nearest + 1e-9)
+            .flat_map(|r| r.1.iter().copied())
+            .collect();
+        line.sort_by(|a, b| a.0.total_cmp(&b.0));
+        line
+    }
+
+    /// The surface's elevation at (`x`, `y`), m: along each lattice row as on a section
+    /// ([`surface_at`]: linear between the row's points, flat beyond its ends), and linear
+    /// in Northing between the two rows about `y` (flat beyond the first and last row). On
+    /// a lattice row it is that row's section surface. None without a surface or at a
+    /// non-finite `y`.
+    pub fn at(&self, x: f64, y: f64) -> Option<f64> {
+        if !y.is_finite() {
+            return None;
+        }
+        let (first, last) = (self.rows.first()?, self.rows.last()?);
+        if y <= first.0 {
+            return interpolate(&first.1, x);
+        }
+        if y >= last.0 {
+            return interpolate(&last.1, x);
+        }
+        let i = self.rows.partition_point(|r| r.0 <= y);
+        let (a, b) = (&self.rows[i - 1], &self.rows[i]);
+        let (za, zb) = (interpolate(&a.1, x)?, interpolate(&b.1, x)?);
+        Some(za + (zb - za) * (y - a.0) / (b.0 - a.0))
+    }
 }
 
 /// The free surface's elevation at `x` on a section (linear between its points, flat
@@ -694,6 +763,7 @@ fn tonnes_by(run: &RunOutput, n: usize, period: i64) -> Vec<f64> {
 ///   and HOD_prev the one at the end of the drawpoint's previous row (0 before its first).
 ///   Plotted at the period's cumulative tonnes; slices with no block (above the model, or a
 ///   missing block) give no point.
+/// - **Dilution entry** ([`dilution_entries`]), where the drawpoint reaches it.
 ///
 /// Series are named after the drawpoints and carry no sampled grades.
 pub fn grade_series(scene: &Scene, run: &RunOutput, g: usize) -> Vec<GradeSeries> {
@@ -702,12 +772,15 @@ pub fn grade_series(scene: &Scene, run: &RunOutput, g: usize) -> Vec<GradeSeries
     let Some(grades) = ex.grades.get(g) else {
         return Vec::new();
     };
+    let entries = dilution_entries(run, dp.len());
     let mut series: Vec<GradeSeries> = dp
         .name
         .iter()
-        .map(|name| GradeSeries {
+        .zip(entries)
+        .map(|(name, entry)| GradeSeries {
             name: name.clone(),
             block_grade: Some(Vec::new()),
+            dilution_entry: entry.is_finite().then_some(entry),
             ..GradeSeries::default()
         })
         .collect();
@@ -996,6 +1069,8 @@ mod tests {
             drawpoint: vec![0, 1, 0, 1, 0, 1],
             period: vec![1, 1, 2, 2, 3, 3],
             cum_tonnes: vec![0.01, 0.0, 0.02, 0.0, 0.03, 0.01],
+            tonnes: vec![0.01, 0.0, 0.01, 0.0, 0.01, 0.01],
+            dilution: vec![0.0, f64::NAN, 0.0, f64::NAN, 0.2, 0.0],
             markers: vec![5, 0, 4, 0, 6, 3],
             hod: vec![0.1, 0.0, 0.2, 0.0, 0.35, 0.1],
             grades: vec![vec![0.4, f64::NAN, 0.5, f64::NAN, 0.6, 0.3]],
@@ -1011,6 +1086,9 @@ mod tests {
         assert_eq!(a.name, "DP01");
         assert_eq!(a.cum_tonnes, [0.01, 0.02, 0.03]);
         assert_eq!(a.predicted, [0.4, 0.5, 0.6]);
+        // 10% waste between the midpoints of periods 2 (0.015 t, none) and 3 (0.025 t, 20%).
+        assert!((a.dilution_entry.unwrap() - 0.02).abs() < 1e-12);
+        assert_eq!(series[1].dilution_entry, None);
         let blocks = a.block_grade.as_ref().unwrap();
         let want = [(0.01, 0.05), (0.02, 0.15), (0.03, 0.275)];
         assert_eq!(blocks.len(), 3);
@@ -1132,5 +1210,49 @@ mod tests {
         assert_eq!(fmt_coord(-0.0), "0");
         assert_eq!(fmt_coord(5120.0), "5120");
         assert_eq!(file_safe("Mo %"), "Mo__");
+    }
+
+    #[test]
+    fn free_surface_reads_each_row_as_a_section_and_is_linear_between_rows() {
+        // Two lattice rows at y = 0 and y = 1 (a gap at x = 1 on the second), kept in the
+        // moment table; a third period's row in the surface table.
+        let mut run = RunOutput::default();
+        let push = |t: &mut SurfaceTable, p: i64, x: f64, y: f64, z: f64| {
+            t.period.push(p);
+            t.x.push(x);
+            t.y.push(y);
+            t.z.push(z);
+        };
+        for (x, y, z) in [(0.0, 0.0, 10.0), (1.0, 0.0, 8.0), (2.0, 0.0, 6.0)] {
+            push(&mut run.moment_surface, 4, x, y, z);
+        }
+        for (x, y, z) in [(0.0, 1.0, 12.0), (2.0, 1.0, 4.0)] {
+            push(&mut run.moment_surface, 4, x, y, z);
+        }
+        push(&mut run.surface, 5, 0.0, 0.0, 3.0);
+        let f = FreeSurface::of(&run, 4);
+        // On a row: the section's surface at that row.
+        for x in [-1.0, 0.0, 0.5, 1.0, 1.5, 2.0, 3.0] {
+            for y in [0.0, 1.0] {
+                assert_eq!(f.at(x, y), surface_at(&f.section(y), x), "({x}, {y})");
+            }
+        }
+        assert_eq!(f.section(0.2), [(0.0, 10.0), (1.0, 8.0), (2.0, 6.0)]);
+        assert_eq!(
+            f.section(0.5).len(),
+            5,
+            "halfway: both rows, as the sections had it"
+        );
+        // Between rows: linear in y; beyond them: flat.
+        assert_eq!(f.at(1.0, 0.25), Some(8.0));
+        assert_eq!(f.at(0.0, 0.5), Some(11.0));
+        assert_eq!(f.at(2.0, -5.0), Some(6.0));
+        assert_eq!(f.at(2.0, 7.0), Some(4.0));
+        assert_eq!(f.at(f64::NAN, 0.5), None);
+        // The surface table first, then the moments; none for a period neither holds.
+        assert_eq!(FreeSurface::of(&run, 5).at(9.0, 9.0), Some(3.0));
+        assert_eq!(FreeSurface::table(&run, 5).1, [0]);
+        assert_eq!(FreeSurface::of(&run, 6).at(0.0, 0.0), None);
+        assert!(FreeSurface::of(&run, 6).section(0.0).is_empty());
     }
 }

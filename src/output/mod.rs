@@ -10,6 +10,9 @@
 //!   file (used by `caveflow demo`).
 //! - [`records`]: production records (the demo's synthetic ones).
 //! - `charts`: PNG and SVG charts.
+//! - [`report`]: self-contained HTML report pages (`report.html` of a run; the look that
+//!   `reconcile` and `study` share).
+//! - [`dilution`]: the dilution entry per drawpoint.
 //! - [`stress`]: the stress logic's tables and charts.
 //! - [`trace`]: the trace points' table.
 //! - [`massflow`]: MassFlow's report layouts (`outputs.massflow`).
@@ -27,12 +30,14 @@ use std::path::PathBuf;
 pub mod charts;
 pub mod columns;
 pub mod dataset;
+pub mod dilution;
 pub mod figures;
 pub mod inputs;
 pub mod manifest;
 pub mod massflow;
 pub mod parquet;
 pub mod records;
+pub mod report;
 pub mod run;
 pub mod stress;
 pub mod trace;

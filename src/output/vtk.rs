@@ -3,16 +3,30 @@
 //! With `outputs.vtk = true` (or `caveflow run --vtk`) a run also writes `<dir>/vtk/`:
 //!
 //! ```text
-//! <dir>/vtk/imz.pvd              IMZ disks, one file per period of imz.parquet
+//! <dir>/vtk/imz.pvd              IMZ disks below the free surface, one file per VTK period
 //! <dir>/vtk/imz/imz_<N>.vtp
 //! <dir>/vtk/markers.pvd          marker states, one file per marker period (markers/period=N)
 //! <dir>/vtk/markers/markers_<N>.vtp
-//! <dir>/vtk/surface.pvd          the free surface, one file per period of surface.parquet
+//! <dir>/vtk/surface.pvd          the free surface, one file per VTK period
 //! <dir>/vtk/surface/surface_<N>.vtp
 //! <dir>/vtk/iez.vtp              the drawn markers' origins (the IEZ), every period in one file
 //! <dir>/vtk/blocks.vtr           the block model on its regular grid
 //! <dir>/vtk/drawpoints.vtp       the drawpoints
 //! ```
+//!
+//! # Periods
+//!
+//! The IMZ and the surface are written at the **VTK periods**: `outputs.vtk_periods` where
+//! given, else the moments of the sections through time (`outputs.section_periods`, by
+//! default the first periods by whose end a quarter, a half and three quarters of the
+//! scheduled tonnes are drawn, and the last period: `Scene::vtk_periods`). A separate key
+//! rather than `section_periods` itself, so that ParaView can play many periods without
+//! as many section charts; its default keeps the two views of a run at the same moments.
+//! A period the schedule lacks is refused when the scene is loaded (`unknown-period`,
+//! naming the key); under `--keep-periods` the periods beyond the kept ones are left out.
+//! The markers are written at the periods of their snapshots (`outputs.marker_periods`,
+//! the last by default), the only periods whose marker states a run keeps. To play the
+//! whole draw, list every period in `outputs.vtk_periods`.
 //!
 //! Open a `.pvd` in ParaView and the time bar plays its periods in order: each file's
 //! `timestep` is its period number (not days). The files are VTK XML (format version 1.0,
@@ -32,11 +46,20 @@
 //!
 //! # Files and fields
 //!
-//! **`imz/imz_<N>.vtp`** (PolyData, one triangle strip per IMZ disk: the disk's wall, a
-//! cylinder of the disk's radius from its base to its top, drawn with [`SEGMENTS`] sides
-//! around the drawpoint's axis; so the cells are the rows of `imz.parquet` at period N, and
-//! the points [`SEGMENTS`] × 2 per disk). The ledges between disks of different radii are
-//! not drawn. Cell data:
+//! **`imz/imz_<N>.vtp`** (PolyData, one triangle strip per IMZ disk of `imz.parquet` at
+//! period N: the disk's wall, a cylinder of the disk's radius from its base to its top,
+//! drawn through [`SEGMENTS`] points of its rim around the drawpoint's axis, [`SEGMENTS`]
+//! × 2 points). The wall is cut at the free surface of period N, as the sections cut the
+//! IMZ outlines (`output::figures::below_surface`): above the surface a disk holds the air
+//! that left the IMZ's top, not moving rock. At each rim point the wall rises from the
+//! disk's base to its top or to the surface there, whichever is lower (the surface read by
+//! `output::figures::FreeSurface::at`, which on a lattice row is the section's surface); a
+//! disk whose base lies at or above the surface at every rim point is not written, and one
+//! whose base the surface crosses is written as one strip per arc below the surface, each
+//! ending where the surface meets the base (two points more per arc, and a cell per arc
+//! with the disk's fields). No point lies above the surface; between rim points the wall's
+//! top is straight, and may pass above a surface that dips between them. The ledges
+//! between disks of different radii are not drawn. Cell data:
 //!
 //! | field | type | unit | what |
 //! |---|---|---|---|
@@ -62,9 +85,11 @@
 //! | `drawpoint` | Int32 | – | drawpoint row that drew it, -1 if not drawn |
 //! | `drawn_period` | Int64 | – | period it was drawn in, -1 if not drawn |
 //!
-//! **`surface/surface_<N>.vtp`** (PolyData, one point per row of `surface.parquet` at period
-//! N: the top of the caved material over each lattice column). Point data: `z` (Float64, m,
-//! the surface elevation, to colour by).
+//! **`surface/surface_<N>.vtp`** (PolyData, one point per lattice column with caved
+//! material at period N: the top of the caved material, the rows of `surface.parquet` at N
+//! where `outputs.surface_periods` holds N, else the surface the engine keeps for the
+//! charts and this export, `RunOutput::moment_surface`). Point data: `z` (Float64, m, the
+//! surface elevation, to colour by).
 //!
 //! **`iez.vtp`** (PolyData, one point per row of `drawn.parquet`, at the marker's origin: the
 //! isolated extraction zones). Every period is in the one file: threshold on `period` to see
@@ -94,7 +119,7 @@
 //! writer is a maintained crate so the format is not ours to get wrong, and every file is
 //! written atomically like every output (`output::parquet`).
 
-use std::collections::{BTreeMap, HashMap, HashSet};
+use std::collections::{BTreeMap, BTreeSet, HashMap, HashSet};
 use std::fs;
 use std::path::{Path, PathBuf};
 
@@ -104,6 +129,7 @@ use vtkio::model::{
     RectilinearGridPiece, Version, VertexNumbers, Vtk,
 };
 
+use super::figures::FreeSurface;
 use super::parquet::{write_atomic, AtomicFile};
 use super::OutputError;
 use crate::engine::result::{DrawnTable, ImzTable, MarkerSnapshot, RunOutput, SurfaceTable};
@@ -114,19 +140,34 @@ use crate::model::Scene;
 pub const SEGMENTS: usize = 24;
 
 /// Writes the VTK files of a run into `dir` (usually `<run dir>/vtk`, created if needed) and
-/// returns the files written, the collections after the files they list.
+/// returns the files written, the collections after the files they list. The IMZ and
+/// surface series hold `periods` (the VTK periods, `Scene::vtk_periods`), ascending, where
+/// the run has them: the IMZ where `imz.parquet` holds the period, the surface where the
+/// run kept it.
 ///
 /// Each period's file is built and written before the next is built, so memory holds one
 /// file's data at a time (a mine-scale IMZ series is hundreds of files). A series' files of
 /// periods this run does not have (left by an earlier run into the same directory) are
 /// removed, so that the directory holds what the collection lists.
-pub fn write_vtk(dir: &Path, scene: &Scene, run: &RunOutput) -> Result<Vec<PathBuf>, OutputError> {
+pub fn write_vtk(
+    dir: &Path,
+    scene: &Scene,
+    run: &RunOutput,
+    periods: &[i64],
+) -> Result<Vec<PathBuf>, OutputError> {
     mkdir(dir)?;
     let mut written = Vec::new();
+    // Ascending, once each: the collections' order.
+    let periods: BTreeSet<i64> = periods.iter().copied().collect();
 
-    let imz = by_period(&run.imz.period)
-        .into_iter()
-        .map(|(p, rows)| (p, imz_data(scene, &run.imz, &rows)));
+    let mut disks = by_period(&run.imz.period);
+    let imz = periods.iter().filter_map(|&p| {
+        let rows = disks.remove(&p)?;
+        Some((
+            p,
+            imz_data(scene, &run.imz, &rows, &FreeSurface::of(run, p)),
+        ))
+    });
     write_series(dir, "imz", imz, &mut written)?;
 
     let blocks = &scene.blocks;
@@ -142,9 +183,10 @@ pub fn write_vtk(dir: &Path, scene: &Scene, run: &RunOutput) -> Result<Vec<PathB
         .map(|s| (s.period, marker_data(blocks, &row_of, s)));
     write_series(dir, "markers", markers, &mut written)?;
 
-    let surface = by_period(&run.surface.period)
-        .into_iter()
-        .map(|(p, rows)| (p, surface_data(&run.surface, &rows)));
+    let surface = periods.iter().filter_map(|&p| {
+        let (t, rows) = FreeSurface::table(run, p);
+        (!rows.is_empty()).then(|| (p, surface_data(t, &rows)))
+    });
     write_series(dir, "surface", surface, &mut written)?;
 
     written.push(write_file(&dir.join("iez.vtp"), iez_data(&run.drawn))?);
@@ -307,37 +349,44 @@ fn interleave(x: &[f64], y: &[f64], z: &[f64], rows: impl Iterator<Item = usize>
     rows.flat_map(|r| [x[r], y[r], z[r]]).collect()
 }
 
-/// The IMZ disks of the rows `rows` of the IMZ table: one closed triangle strip per disk.
-fn imz_data(scene: &Scene, t: &ImzTable, rows: &[usize]) -> DataSet {
+/// The IMZ disks of the rows `rows` of the IMZ table below the free surface `surface` of
+/// their period: a triangle strip per piece of a disk's wall ([`disk_wall`]).
+fn imz_data(scene: &Scene, t: &ImzTable, rows: &[usize], surface: &FreeSurface) -> DataSet {
     let dps = &scene.drawpoints;
     let mut xyz = Vec::with_capacity(rows.len() * SEGMENTS * 6);
     let mut connectivity = Vec::with_capacity(rows.len() * (2 * SEGMENTS + 2));
     let mut offsets = Vec::with_capacity(rows.len());
-    let ring: Vec<(f64, f64)> = (0..SEGMENTS)
-        .map(|k| {
-            let a = std::f64::consts::TAU * k as f64 / SEGMENTS as f64;
-            (a.cos(), a.sin())
-        })
-        .collect();
+    // The row of the IMZ table each cell draws.
+    let mut cells = Vec::with_capacity(rows.len());
     for &r in rows {
         let d = t.drawpoint[r] as usize;
-        let (cx, cy, radius) = (dps.x[d], dps.y[d], t.radius[r]);
-        let first = (xyz.len() / 3) as u64;
-        for &(c, s) in &ring {
-            let (x, y) = (cx + radius * c, cy + radius * s);
-            xyz.extend_from_slice(&[x, y, t.z_base[r], x, y, t.z_top[r]]);
+        let (z_base, z_top) = (t.z_base[r], t.z_top[r]);
+        let disk = Disk {
+            centre: (dps.x[d], dps.y[d]),
+            radius: t.radius[r],
+            z_base,
+        };
+        for (wall, closed) in disk_wall(&disk, surface) {
+            let first = (xyz.len() / 3) as u64;
+            for &(x, y, s) in &wall {
+                xyz.extend_from_slice(&[x, y, z_base, x, y, z_top.min(s)]);
+            }
+            connectivity.extend(first..first + 2 * wall.len() as u64);
+            if closed {
+                // Close the wall: back to the first pair.
+                connectivity.extend([first, first + 1]);
+            }
+            offsets.push(connectivity.len() as u64);
+            cells.push(r);
         }
-        connectivity.extend(first..first + 2 * SEGMENTS as u64);
-        // Close the wall: back to the first pair.
-        connectivity.extend([first, first + 1]);
-        offsets.push(connectivity.len() as u64);
     }
-    let pick_f = |v: &[f64]| rows.iter().map(|&r| v[r]).collect::<Vec<f64>>();
-    let pick_i = |v: &[i64]| rows.iter().map(|&r| v[r]).collect::<Vec<i64>>();
+    let pick_f = |v: &[f64]| cells.iter().map(|&r| v[r]).collect::<Vec<f64>>();
+    let pick_i = |v: &[i64]| cells.iter().map(|&r| v[r]).collect::<Vec<i64>>();
     let cell = vec![
         field(
             "drawpoint",
-            rows.iter()
+            cells
+                .iter()
                 .map(|&r| drawpoint_code(t.drawpoint[r]))
                 .collect::<IOBuffer>(),
         ),
@@ -359,6 +408,83 @@ fn imz_data(scene: &Scene, t: &ImzTable, rows: &[usize]) -> DataSet {
         },
         ..Default::default()
     })
+}
+
+/// An IMZ disk as its wall needs it: axis (Easting, Northing), radius and base, m.
+#[derive(Debug, Clone, Copy)]
+struct Disk {
+    /// The drawpoint's axis.
+    centre: (f64, f64),
+    /// R_i.
+    radius: f64,
+    /// The disk's base elevation.
+    z_base: f64,
+}
+
+impl Disk {
+    /// The point of the disk's rim at angle `a` (radians from the Easting axis).
+    fn rim(&self, a: f64) -> (f64, f64) {
+        (
+            self.centre.0 + self.radius * a.cos(),
+            self.centre.1 + self.radius * a.sin(),
+        )
+    }
+}
+
+/// A point of a disk's rim, (x, y), and the free surface's elevation there, m.
+type RimPoint = (f64, f64, f64);
+
+/// Halvings of the angle between a rim point below the surface and one above it that
+/// place the wall's end where the surface meets the disk's base: 2π / SEGMENTS / 2⁴⁰ rad
+/// is under a nanometre of rim on a 1 km disk.
+const CROSSING_STEPS: usize = 40;
+
+/// The parts of a disk's wall below the free surface `surface`, each with whether it is
+/// the whole closed wall: per part, its rim points (x, y) in order of angle, each with the
+/// surface's elevation there ([`FreeSurface::at`]; +∞ without a surface). The wall is
+/// drawn at the [`SEGMENTS`] rim points at angles 2πk/SEGMENTS, from the disk's base up to
+/// its top or the surface, whichever is lower. A rim point where the surface is at or
+/// below the base has no wall: a run of such points cuts the wall into arcs, and each arc
+/// ends where the surface meets the base, found by halving the angle to the point beyond
+/// ([`CROSSING_STEPS`]) and kept on the side below the surface, so that no end rises
+/// above it. A wall wholly below the surface is one closed strip, [`SEGMENTS`] points as
+/// before the cut; one wholly above it is not drawn.
+fn disk_wall(disk: &Disk, surface: &FreeSurface) -> Vec<(Vec<RimPoint>, bool)> {
+    let angle = |k: f64| std::f64::consts::TAU * k / SEGMENTS as f64;
+    let point = |a: f64| {
+        let (x, y) = disk.rim(a);
+        (x, y, surface.at(x, y).unwrap_or(f64::INFINITY))
+    };
+    let rim: Vec<RimPoint> = (0..SEGMENTS).map(|k| point(angle(k as f64))).collect();
+    let below = |k: usize| rim[k].2 > disk.z_base;
+    if (0..SEGMENTS).all(below) {
+        return vec![(rim, true)];
+    }
+    // Where the surface meets the base between the rim angles `inside` (below the
+    // surface) and `outside`.
+    let crossing = |mut inside: f64, mut outside: f64| {
+        for _ in 0..CROSSING_STEPS {
+            let mid = 0.5 * (inside + outside);
+            if point(mid).2 > disk.z_base {
+                inside = mid;
+            } else {
+                outside = mid;
+            }
+        }
+        point(inside)
+    };
+    let mut walls = Vec::new();
+    for a in (0..SEGMENTS).filter(|&k| below(k) && !below((k + SEGMENTS - 1) % SEGMENTS)) {
+        let mut wall = vec![crossing(angle(a as f64), angle(a as f64 - 1.0))];
+        let mut k = a;
+        while below(k % SEGMENTS) {
+            wall.push(rim[k % SEGMENTS]);
+            k += 1;
+        }
+        wall.push(crossing(angle((k - 1) as f64), angle(k as f64)));
+        walls.push((wall, false));
+    }
+    walls
 }
 
 /// One marker snapshot at the markers' positions.

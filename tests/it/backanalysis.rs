@@ -20,7 +20,7 @@ use caveflow::model::{Scenario, Scene};
 use caveflow::output::records::write_records;
 use polars::prelude::*;
 
-use crate::fixtures::{caveflow_in, caveflow_out};
+use crate::fixtures::{assert_renders, caveflow_in, caveflow_out};
 
 /// The hidden truth: Urad fragments are 0.15 m, not the stated 0.23 m.
 const TRUE_FACTOR: f64 = 0.15 / 0.23;
@@ -204,6 +204,8 @@ fn reconcile_writes_the_table_and_a_self_contained_report() {
     ] {
         assert!(!html.contains(fetch), "the page has {fetch:?}");
     }
+    let title = format!("Reconciliation: {} drawpoints", scene.drawpoints.len());
+    assert_renders(&rec.join("report.html"), &title);
 }
 
 /// Drawpoints the reduced scene never draws from.

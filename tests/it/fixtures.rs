@@ -1,6 +1,6 @@
 //! Fixtures shared by the test modules: the command under test, the demo's `data/`, the small
-//! valid scene of the input tests, a tiny box scene (and a study of it), runs and their
-//! comparison, Parquet files, and the check of a reported problem.
+//! valid scene of the input tests, a tiny box scene (and a study of it), the breakthrough
+//! columns, runs and their comparison, Parquet files, and the check of a reported problem.
 
 use std::collections::BTreeMap;
 use std::fs;
@@ -168,6 +168,32 @@ pub fn tiny() -> Scene {
         ..UniformBox::castro_isolated()
     }
     .scene()
+}
+
+/// Uniform Castro box of height `height`, `width` square, an isolated 120 mm drawpoint at
+/// the centre drawing `tonnes` in each of `periods`: the columns the surface-cone and VTK
+/// tests draw through breakthrough.
+pub fn cone_column(width: f64, height: f64, periods: usize, tonnes: f64) -> Scene {
+    UniformBox {
+        extent: [width, width, height],
+        drawpoints: vec![(0.0, 0.0, 0.12)],
+        periods,
+        tonnes,
+        ..UniformBox::castro_isolated()
+    }
+    .scene()
+}
+
+/// The scenario of a [`cone_column`]: marker spacing `s`, disks 2 s thick, draw increment
+/// `inc`, rilling on, the IMZ and the free surface at every period and the markers at the
+/// last.
+pub fn cone_scenario(periods: usize, s: f64, inc: f64) -> Scenario {
+    let mut sc = scenario(2.0 * s, s, inc);
+    sc.mechanisms.rilling = true;
+    sc.outputs.imz_every_period = true;
+    sc.outputs.surface_periods = (1..=periods as i64).collect();
+    sc.outputs.marker_periods = vec![periods as i64];
+    sc
 }
 
 /// The tiny scene's tables and scenario (charts off) in `dir`, plus `schedule_alt.csv`: the
@@ -419,4 +445,91 @@ pub fn entries(dir: &Path) -> Vec<String> {
         .collect();
     v.sort();
     v
+}
+
+// ---------------------------------------------------------------------------------------
+// Report pages in headless Chromium.
+
+/// Renders the report `page` in headless Chromium (`tests/data/report/render.py`, driven
+/// by Playwright from `CAVEFLOW_PY`) and asserts what an engineer's browser must show: the
+/// title `title`, no console error or warning, no uncaught error, no request beyond the
+/// file itself and its `data:` images, and a screenshot that is not blank (over 5% of the
+/// pixels not white, over 200 colours). Returns the screenshot's size, or `None` after a
+/// note when Python with Playwright or Chromium is not here (`.ci/run` provides both).
+pub fn assert_renders(page: &Path, title: &str) -> Option<(u32, u32)> {
+    let Some(python) = std::env::var_os("CAVEFLOW_PY") else {
+        eprintln!(
+            "note: {} not rendered: CAVEFLOW_PY is not set (`.ci/run` sets it)",
+            page.display()
+        );
+        return None;
+    };
+    let chromium = std::env::var("CAVEFLOW_CHROMIUM").unwrap_or("/usr/bin/chromium".into());
+    if !Path::new(&chromium).exists() {
+        eprintln!(
+            "note: {} not rendered: no Chromium at {chromium}",
+            page.display()
+        );
+        return None;
+    }
+    let shot = page.with_extension("png");
+    let out = Command::new(python)
+        .arg(repo("tests/data/report/render.py"))
+        .arg(page)
+        .arg(&shot)
+        .arg(&chromium)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "render.py failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let log: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let console: Vec<&serde_json::Value> = log["console"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|m| m[0] == "error" || m[0] == "warning")
+        .collect();
+    assert!(console.is_empty(), "console: {console:?}");
+    assert_eq!(log["errors"].as_array().unwrap().len(), 0, "{log}");
+    let url = format!("file://{}", page.canonicalize().unwrap().display());
+    for r in log["requests"].as_array().unwrap() {
+        let r = r.as_str().unwrap();
+        assert!(r == url || r.starts_with("data:"), "the page requested {r}");
+    }
+    assert_eq!(log["title"], title);
+    let (w, h, non_white, colours) = screenshot_stats(&shot);
+    assert!(
+        non_white > 0.05,
+        "{:.1}% of the pixels are not white",
+        100.0 * non_white
+    );
+    assert!(colours > 200, "{colours} colours");
+    Some((w, h))
+}
+
+/// (width, height, share of pixels that are not white, distinct colours) of a PNG.
+fn screenshot_stats(path: &Path) -> (u32, u32, f64, usize) {
+    let decoder = png::Decoder::new(fs::File::open(path).unwrap());
+    let mut reader = decoder.read_info().unwrap();
+    let mut buf = vec![0; reader.output_buffer_size()];
+    let info = reader.next_frame(&mut buf).unwrap();
+    let px = info.color_type.samples();
+    let bytes = &buf[..info.buffer_size()];
+    let mut colours = std::collections::HashSet::new();
+    let mut non_white = 0usize;
+    for p in bytes.chunks_exact(px) {
+        let rgb = (p[0], p[1], p[2]);
+        non_white += usize::from(rgb != (255, 255, 255));
+        colours.insert(rgb);
+    }
+    let n = (bytes.len() / px).max(1);
+    (
+        info.width,
+        info.height,
+        non_white as f64 / n as f64,
+        colours.len(),
+    )
 }

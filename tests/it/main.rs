@@ -19,6 +19,7 @@ mod output;
 mod plan;
 mod props;
 mod records;
+mod report;
 mod rilling;
 mod stability;
 mod stress;

@@ -12,7 +12,7 @@ use caveflow::analysis::study::runner::{Progress, SUCCESS, TABLES};
 use caveflow::analysis::study::{run_study, Layout, Outcome, Study, StudyProblems};
 
 use crate::fixtures::{
-    assert_same_study, caveflow, caveflow_out, entries, read_parquet, study_file,
+    assert_renders, assert_same_study, caveflow, caveflow_out, entries, read_parquet, study_file,
     study_scene_files, tiny_study, STUDY_GRID_ALT,
 };
 
@@ -408,6 +408,28 @@ fn cli_plan_variant_and_study_share_the_layout() {
         "{stdout}"
     );
     assert_eq!(read_parquet(&out.join("summary.parquet")).num_rows(), 2);
+    // The report: both variants' curves overlaid, the second against the first on a map,
+    // both in the table; it renders as the run report does.
+    let page = out.join("report.html");
+    let html = fs::read_to_string(&page).unwrap();
+    for part in [
+        "Grade against cumulative tonnes",
+        "Recovery against dilution",
+        "Per drawpoint, against uniform-0.8",
+        "<td>uniform-1.0</td>",
+    ] {
+        assert!(html.contains(part), "no {part:?} in the study report");
+    }
+    for chart in ["grade_tonnage.svg", "recovery_dilution.svg"] {
+        let svg = fs::read_to_string(out.join("charts").join(chart)).unwrap();
+        assert_eq!(
+            svg.matches("uniform-").count(),
+            2,
+            "{chart}: a legend entry per variant"
+        );
+    }
+    let name = Study::expand(&path).unwrap().name;
+    assert_renders(&page, &format!("caveflow study: {name}"));
     // An unknown variant, and a bad study: exit 1, with the rule; nothing written.
     let r = caveflow_out(&["study", study, "--out", o, "--variant", "nope"]);
     assert_eq!(r.status.code(), Some(1));

@@ -8,9 +8,10 @@ use std::path::Path;
 
 use caveflow::engine::imz::r_law;
 use caveflow::engine::{Engine, RunOutput};
-use caveflow::model::synthetic::UniformBox;
 use caveflow::model::{Scenario, Scene};
 use caveflow::output::figures::{drawdown_section, surface_at};
+
+use crate::fixtures::{cone_column as column, cone_scenario as scenario};
 
 /// Lattice spacing s, m (h = 2 s).
 const S: f64 = 0.0125;
@@ -30,30 +31,6 @@ struct Row {
     r_meet: f64,
     /// Crater depth at the axis, m.
     depth: f64,
-}
-
-/// Uniform Castro box of height `height`, an isolated 120 mm drawpoint at the centre.
-fn column(width: f64, height: f64, periods: usize, tonnes: f64) -> Scene {
-    UniformBox {
-        extent: [width, width, height],
-        drawpoints: vec![(0.0, 0.0, 0.12)],
-        periods,
-        tonnes,
-        ..UniformBox::castro_isolated()
-    }
-    .scene()
-}
-
-fn scenario(periods: usize, s: f64, inc: f64) -> Scenario {
-    let mut sc = Scenario::default();
-    sc.resolution.layer_thickness = Some(2.0 * s);
-    sc.resolution.marker_spacing = Some(s);
-    sc.resolution.draw_increment = Some(inc);
-    sc.mechanisms.rilling = true;
-    sc.outputs.imz_every_period = true;
-    sc.outputs.surface_periods = (1..=periods as i64).collect();
-    sc.outputs.marker_periods = vec![periods as i64];
-    sc
 }
 
 /// Azimuthal mean of f over rings of width s about the axis: (ring outer radius, mean).

@@ -5,8 +5,9 @@ use std::collections::{BTreeMap, HashMap};
 use std::fs;
 use std::path::Path;
 
-use caveflow::engine::RunOutput;
+use caveflow::engine::{ImzTable, RunOutput};
 use caveflow::model::{Scenario, Scene};
+use caveflow::output::figures::FreeSurface;
 use caveflow::output::vtk::{write_vtk, SEGMENTS};
 use quick_xml::events::Event;
 use vtkio::model::{
@@ -14,7 +15,10 @@ use vtkio::model::{
 };
 use vtkio::Vtk;
 
-use crate::fixtures::{bits, caveflow_in, entries, run, small_scene_in, tiny, SMALL_SCENE_INPUTS};
+use crate::fixtures::{
+    bits, caveflow_in, cone_column, cone_scenario, entries, run, small_scene_in, tiny,
+    SMALL_SCENE_INPUTS,
+};
 
 /// The entries of `vtk/` after an export, in name order.
 const EXPORT: [&str; 9] = [
@@ -145,6 +149,36 @@ fn by_period(period: &[i64]) -> BTreeMap<i64, Vec<usize>> {
     m
 }
 
+/// A folder holding the small scene of the input tests and its `scenario.toml`.
+fn small_scene_dir() -> tempfile::TempDir {
+    let tmp = tempfile::tempdir().unwrap();
+    small_scene_in(tmp.path());
+    fs::write(tmp.path().join("scenario.toml"), SMALL_SCENE_INPUTS).unwrap();
+    tmp
+}
+
+/// `caveflow run scenario.toml --out OUT EXTRA…` in `d`, which must succeed: `d/OUT`.
+fn run_in(d: &Path, out: &str, extra: &[&str]) -> std::path::PathBuf {
+    let mut args = vec!["run", "scenario.toml", "--out", out];
+    args.extend(extra);
+    let o = caveflow_in(&args, d);
+    assert!(
+        o.status.success(),
+        "{args:?}: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    d.join(out)
+}
+
+/// The Parquet tables of two run directories are byte-identical.
+fn same_tables(a: &Path, b: &Path, what: &str) {
+    for table in ["extraction", "imz", "drawn", "air_gap", "surface"] {
+        let x = fs::read(a.join(format!("{table}.parquet"))).unwrap();
+        let y = fs::read(b.join(format!("{table}.parquet"))).unwrap();
+        assert!(x == y, "{table}.parquet differs {what}");
+    }
+}
+
 /// The tiny scene run with markers and the surface at every period.
 fn tiny_run() -> (Scene, RunOutput) {
     let scene = tiny();
@@ -155,12 +189,115 @@ fn tiny_run() -> (Scene, RunOutput) {
     (scene, out)
 }
 
+/// The wall pieces the export must write for the IMZ disks `rows` under `surface`, derived
+/// from the tables by `output::vtk`'s documented rule: at the SEGMENTS rim points of a
+/// disk (angles 2πk/SEGMENTS), those where the surface lies above the disk's base carry a
+/// wall; all of them make one closed strip, none nothing, and each run of them (around the
+/// rim) a strip with two points more, its ends. Per piece: (IMZ row, points, closed).
+fn expected_walls(
+    scene: &Scene,
+    imz: &ImzTable,
+    rows: &[usize],
+    surface: &FreeSurface,
+) -> Vec<(usize, usize, bool)> {
+    let mut out = Vec::new();
+    for &r in rows {
+        let d = imz.drawpoint[r] as usize;
+        let (cx, cy, radius) = (scene.drawpoints.x[d], scene.drawpoints.y[d], imz.radius[r]);
+        let below: Vec<bool> = (0..SEGMENTS)
+            .map(|k| {
+                let a = std::f64::consts::TAU * k as f64 / SEGMENTS as f64;
+                let (x, y) = (cx + radius * a.cos(), cy + radius * a.sin());
+                surface.at(x, y).is_none_or(|s| s > imz.z_base[r])
+            })
+            .collect();
+        if below.iter().all(|&b| b) {
+            out.push((r, 2 * SEGMENTS, true));
+            continue;
+        }
+        for k in 0..SEGMENTS {
+            if below[k] && !below[(k + SEGMENTS - 1) % SEGMENTS] {
+                let n = (0..SEGMENTS)
+                    .take_while(|j| below[(k + j) % SEGMENTS])
+                    .count();
+                out.push((r, 2 * (n + 2), false));
+            }
+        }
+    }
+    out
+}
+
+/// Checks one exported IMZ file against the disks `rows` of `imz` at period `p` and the
+/// surface of that period: the pieces and their points as [`expected_walls`] derives them,
+/// the cell fields those of each piece's disk, every point on its disk's rim, bases at the
+/// disk's base and tops no higher than its top or the surface. Returns the pieces and the
+/// points written.
+fn check_imz_file(
+    path: &Path,
+    scene: &Scene,
+    imz: &ImzTable,
+    p: i64,
+    rows: &[usize],
+    surface: &FreeSurface,
+) -> (usize, usize) {
+    let piece = poly(path);
+    let walls = expected_walls(scene, imz, rows, surface);
+    let n = walls.len();
+    let points: usize = walls.iter().map(|w| w.1).sum();
+    let connectivity: usize = walls.iter().map(|w| w.1 + if w.2 { 2 } else { 0 }).sum();
+    assert_eq!(piece.num_strips(), n, "period {p}: a strip per wall piece");
+    assert_eq!(piece.num_cells(), n);
+    assert_eq!(piece.num_points(), points, "period {p}");
+    assert_eq!(cells(&piece.strips).0, connectivity);
+    assert_eq!(names(&piece.data.cell), IMZ_FIELDS);
+    assert!(piece.data.point.is_empty());
+    all_of_length(&piece.data, 0, n, "imz");
+    let pick = |v: &[f64]| bits(&walls.iter().map(|w| v[w.0]).collect::<Vec<_>>());
+    assert_eq!(bits(&f64s(&piece.data.cell, "radius")), pick(&imz.radius));
+    assert_eq!(bits(&f64s(&piece.data.cell, "z_base")), pick(&imz.z_base));
+    assert_eq!(bits(&f64s(&piece.data.cell, "z_top")), pick(&imz.z_top));
+    assert_eq!(i64s(&piece.data.cell, "period"), vec![p; n]);
+    let dp = i64s(&piece.data.cell, "drawpoint");
+    let disk = i64s(&piece.data.cell, "disk");
+    let xyz = piece.points.cast_into::<f64>().unwrap();
+    let (conn, offsets) = piece.strips.clone().unwrap().into_xml();
+    let mut first = 0;
+    for (i, &(r, m, closed)) in walls.iter().enumerate() {
+        assert_eq!(dp[i], imz.drawpoint[r] as i64);
+        assert_eq!(disk[i], imz.disk[r]);
+        let start = if i == 0 { 0 } else { offsets[i - 1] as usize };
+        let mut want: Vec<u64> = (first..first + m as u64).collect();
+        if closed {
+            want.extend([first, first + 1]);
+        }
+        assert_eq!(
+            conn[start..offsets[i] as usize],
+            want,
+            "period {p}, piece {i}"
+        );
+        let d = imz.drawpoint[r] as usize;
+        for k in 0..m {
+            let q = &xyz[3 * (first as usize + k)..][..3];
+            let rho = (q[0] - scene.drawpoints.x[d]).hypot(q[1] - scene.drawpoints.y[d]);
+            assert!((rho - imz.radius[r]).abs() < 1e-9, "piece {i}: {rho}");
+            if k % 2 == 0 {
+                assert_eq!(q[2], imz.z_base[r], "period {p}, piece {i}: base");
+            } else {
+                let s = surface.at(q[0], q[1]).unwrap_or(f64::INFINITY);
+                assert!(q[2] > imz.z_base[r] && q[2] <= imz.z_top[r].min(s));
+            }
+        }
+        first += m as u64;
+    }
+    (n, points)
+}
+
 #[test]
 fn every_vtk_file_reads_back_with_the_runs_counts_and_the_documented_fields() {
     let (scene, out) = tiny_run();
     let tmp = tempfile::tempdir().unwrap();
     let dir = tmp.path().join("vtk");
-    let files = write_vtk(&dir, &scene, &out).unwrap();
+    let files = write_vtk(&dir, &scene, &out, &[1, 2, 3]).unwrap();
     assert_eq!(entries(&dir), EXPORT, "and no temporary file left");
     for f in &files {
         assert!(f.is_file(), "{} listed but absent", f.display());
@@ -168,10 +305,12 @@ fn every_vtk_file_reads_back_with_the_runs_counts_and_the_documented_fields() {
     let grades = &scene.blocks.grade_names;
     assert_eq!(grades, &["elev"]);
 
-    // IMZ: one strip cell per disk of imz.parquet's period, 2 × SEGMENTS points each.
+    // IMZ: at the VTK periods (by default the sections' moments, here every period), a
+    // strip per piece of each disk's wall below the period's surface.
     let imz = &out.imz;
     let periods = by_period(&imz.period);
     assert_eq!(periods.keys().copied().collect::<Vec<_>>(), [1, 2, 3]);
+    assert_eq!(scene.vtk_periods(&Scenario::default().outputs), [1, 2, 3]);
     let pvd = collection(&dir.join("imz.pvd"));
     assert_eq!(
         pvd,
@@ -180,47 +319,16 @@ fn every_vtk_file_reads_back_with_the_runs_counts_and_the_documented_fields() {
             .map(|p| (*p, format!("imz/imz_{p}.vtp")))
             .collect::<Vec<_>>()
     );
-    let mut disks_seen = 0;
     for (p, rows) in &periods {
-        let piece = poly(&dir.join(format!("imz/imz_{p}.vtp")));
-        let n = rows.len();
-        eprintln!("imz period {p}: {n} disks");
-        assert!(n >= 2, "period {p}: {n} disks");
-        assert_eq!(piece.num_strips(), n, "period {p}: a strip per disk");
-        assert_eq!(piece.num_cells(), n);
-        assert_eq!(piece.num_points(), 2 * SEGMENTS * n);
-        assert_eq!(cells(&piece.strips).0, (2 * SEGMENTS + 2) * n);
-        assert_eq!(names(&piece.data.cell), IMZ_FIELDS);
-        assert!(piece.data.point.is_empty());
-        all_of_length(&piece.data, 0, n, "imz");
-        let pick = |v: &[f64]| bits(&rows.iter().map(|&r| v[r]).collect::<Vec<_>>());
-        assert_eq!(bits(&f64s(&piece.data.cell, "radius")), pick(&imz.radius));
-        assert_eq!(bits(&f64s(&piece.data.cell, "z_base")), pick(&imz.z_base));
-        assert_eq!(bits(&f64s(&piece.data.cell, "z_top")), pick(&imz.z_top));
-        let dp = i64s(&piece.data.cell, "drawpoint");
-        let disk = i64s(&piece.data.cell, "disk");
-        assert_eq!(i64s(&piece.data.cell, "period"), vec![*p; n]);
-        // The geometry: every point of disk i on its wall, at its base or its top.
-        let xyz = piece.points.cast_into::<f64>().unwrap();
-        for (i, &r) in rows.iter().enumerate() {
-            assert_eq!(dp[i], imz.drawpoint[r] as i64);
-            assert_eq!(disk[i], imz.disk[r]);
-            let d = imz.drawpoint[r] as usize;
-            for k in 0..2 * SEGMENTS {
-                let q = &xyz[3 * (2 * SEGMENTS * i + k)..][..3];
-                let rho = (q[0] - scene.drawpoints.x[d]).hypot(q[1] - scene.drawpoints.y[d]);
-                assert!((rho - imz.radius[r]).abs() < 1e-9, "disk {i}: {rho}");
-                let z = if k % 2 == 0 {
-                    imz.z_base[r]
-                } else {
-                    imz.z_top[r]
-                };
-                assert_eq!(q[2], z);
-            }
-        }
-        disks_seen += n;
+        let path = dir.join(format!("imz/imz_{p}.vtp"));
+        let surface = FreeSurface::of(&out, *p);
+        let (n, points) = check_imz_file(&path, &scene, imz, *p, rows, &surface);
+        eprintln!(
+            "imz period {p}: {} disks, {n} wall pieces, {points} points",
+            rows.len()
+        );
+        assert!(n >= 2, "period {p}: {n} pieces");
     }
-    assert_eq!(disks_seen, imz.period.len(), "every row of imz.parquet");
 
     // Markers: one point (and one vertex) per marker of each snapshot.
     assert_eq!(
@@ -355,7 +463,7 @@ fn grid_cells_without_a_block_are_marked() {
     let last = bm.index.len() - 1;
     bm.index[last] = caveflow::model::block_model::NO_BLOCK;
     let tmp = tempfile::tempdir().unwrap();
-    write_vtk(tmp.path(), &scene, &out).unwrap();
+    write_vtk(tmp.path(), &scene, &out, &[3]).unwrap();
     let grid = RectilinearGridPiece::try_from(import(&tmp.path().join("blocks.vtr"))).unwrap();
     let id = i64s(&grid.data.cell, "block_id");
     let cave = i64s(&grid.data.cell, "cave_period");
@@ -372,27 +480,12 @@ fn grid_cells_without_a_block_are_marked() {
 /// Parquet tables are byte-identical either way.
 #[test]
 fn the_cli_writes_vtk_only_when_asked_and_changes_no_table() {
-    let tmp = tempfile::tempdir().unwrap();
+    let tmp = small_scene_dir();
     let d = tmp.path();
-    small_scene_in(d);
-    fs::write(d.join("scenario.toml"), SMALL_SCENE_INPUTS).unwrap();
     let go = |out: &str, extra: &[&str]| {
-        let mut args = vec![
-            "run",
-            "scenario.toml",
-            "--out",
-            out,
-            "--set",
-            "outputs.charts=false",
-        ];
+        let mut args = vec!["--set", "outputs.charts=false"];
         args.extend(extra);
-        let o = caveflow_in(&args, d);
-        assert!(
-            o.status.success(),
-            "{args:?}: {}",
-            String::from_utf8_lossy(&o.stderr)
-        );
-        d.join(out)
+        run_in(d, out, &args)
     };
     let off = go("off", &[]);
     let flag = go("flag", &["--vtk"]);
@@ -404,11 +497,7 @@ fn the_cli_writes_vtk_only_when_asked_and_changes_no_table() {
             let piece = poly(&on.join("vtk").join(file));
             assert!(piece.num_strips() > 0);
         }
-        for table in ["extraction", "imz", "drawn", "air_gap", "surface"] {
-            let a = fs::read(off.join(format!("{table}.parquet"))).unwrap();
-            let b = fs::read(on.join(format!("{table}.parquet"))).unwrap();
-            assert!(a == b, "{table}.parquet differs with vtk on");
-        }
+        same_tables(&off, on, "with vtk on");
     }
 }
 
@@ -424,7 +513,7 @@ fn vtks_own_readers_open_every_file() {
     let (scene, out) = tiny_run();
     let tmp = tempfile::tempdir().unwrap();
     let dir = tmp.path().join("vtk");
-    write_vtk(&dir, &scene, &out).unwrap();
+    write_vtk(&dir, &scene, &out, &[1, 2, 3]).unwrap();
     // What the script must find: file → (points, cells, point fields, cell fields).
     let mut expect = serde_json::Map::new();
     let mut put = |file: String, p: usize, c: usize, pf: Vec<String>, cf: Vec<String>| {
@@ -432,11 +521,11 @@ fn vtks_own_readers_open_every_file() {
     };
     let grades = &scene.blocks.grade_names;
     for (p, rows) in by_period(&out.imz.period) {
-        let n = rows.len();
+        let walls = expected_walls(&scene, &out.imz, &rows, &FreeSurface::of(&out, p));
         put(
             format!("imz/imz_{p}.vtp"),
-            2 * SEGMENTS * n,
-            n,
+            walls.iter().map(|w| w.1).sum(),
+            walls.len(),
             vec![],
             IMZ_FIELDS.map(String::from).to_vec(),
         );
@@ -504,17 +593,180 @@ fn vtks_own_readers_open_every_file() {
 fn a_second_export_leaves_only_what_its_collections_list() {
     let (scene, mut out) = tiny_run();
     let tmp = tempfile::tempdir().unwrap();
-    write_vtk(tmp.path(), &scene, &out).unwrap();
+    write_vtk(tmp.path(), &scene, &out, &[1, 2, 3]).unwrap();
     assert_eq!(
         entries(&tmp.path().join("markers")),
         ["markers_1.vtp", "markers_2.vtp", "markers_3.vtp"]
     );
     out.snapshots.drain(..2);
-    write_vtk(tmp.path(), &scene, &out).unwrap();
+    write_vtk(tmp.path(), &scene, &out, &[3, 1, 3]).unwrap();
     assert_eq!(entries(&tmp.path().join("markers")), ["markers_3.vtp"]);
     assert_eq!(
         collection(&tmp.path().join("markers.pvd")),
         [(3, "markers/markers_3.vtp".to_string())]
     );
-    assert_eq!(entries(&tmp.path().join("imz")).len(), 3);
+    assert_eq!(entries(&tmp.path().join("imz")), ["imz_1.vtp", "imz_3.vtp"]);
+    assert_eq!(
+        collection(&tmp.path().join("imz.pvd")),
+        [1, 3].map(|p| (p, format!("imz/imz_{p}.vtp")))
+    );
+    assert_eq!(
+        entries(&tmp.path().join("surface")),
+        ["surface_1.vtp", "surface_3.vtp"]
+    );
+}
+
+/// `outputs.vtk_periods` chooses the periods of the IMZ and surface series, and their
+/// collections list them in period order; by default they are the sections' moments. The
+/// markers stay at their snapshots.
+#[test]
+fn the_period_key_chooses_the_files_and_the_collections_list_them_in_order() {
+    let tmp = small_scene_dir();
+    let d = tmp.path();
+    let go = |out: &str, extra: &[&str]| {
+        let mut args = vec!["--vtk"];
+        args.extend(extra);
+        run_in(d, out, &args).join("vtk")
+    };
+    let series = |vtk: &Path, name: &str| {
+        let listed = collection(&vtk.join(format!("{name}.pvd")));
+        let files: Vec<String> = entries(&vtk.join(name));
+        let mut from_pvd: Vec<String> = listed
+            .iter()
+            .map(|(_, f)| f.trim_start_matches(&format!("{name}/")).to_string())
+            .collect();
+        from_pvd.sort();
+        assert_eq!(files, from_pvd, "{name}: the files are those listed");
+        listed.into_iter().map(|(p, _)| p).collect::<Vec<i64>>()
+    };
+    // The small scene's two periods draw 200 t and 50 t: the quarter, half and three
+    // quarters all fall in period 1, so its moments are [1, 2], as the charts' are.
+    let default = go("default", &[]);
+    let charts: Vec<String> = entries(&d.join("default/charts"))
+        .into_iter()
+        .filter(|f| f.starts_with("section_1"))
+        .collect();
+    assert_eq!(charts, ["section_1.png", "section_1_p1.png"]);
+    assert_eq!(series(&default, "imz"), [1, 2]);
+    assert_eq!(series(&default, "surface"), [1, 2]);
+    assert_eq!(series(&default, "markers"), [2]);
+    // Chosen out of order and repeated: written once each, listed in period order.
+    let chosen = go("chosen", &["--set", "outputs.vtk_periods=[2, 1, 2]"]);
+    assert_eq!(series(&chosen, "imz"), [1, 2]);
+    assert_eq!(series(&chosen, "surface"), [1, 2]);
+    let one = go("one", &["--set", "outputs.vtk_periods=[2]"]);
+    assert_eq!(series(&one, "imz"), [2]);
+    assert_eq!(series(&one, "surface"), [2]);
+    assert_eq!(
+        series(&one, "markers"),
+        [2],
+        "the markers follow marker_periods"
+    );
+    // Without the key, the export follows the sections' periods.
+    let sections = go("sections", &["--set", "outputs.section_periods=[1]"]);
+    assert_eq!(
+        series(&sections, "imz"),
+        [1],
+        "the default follows the sections"
+    );
+    // The tables are the same whichever periods the export writes.
+    same_tables(&d.join("default"), &d.join("one"), "with other VTK periods");
+}
+
+/// A VTK period the schedule lacks is refused by `run` and `validate`, naming the key and
+/// the rule, and the run writes nothing.
+#[test]
+fn a_vtk_period_outside_the_schedule_is_refused_with_its_key_and_rule() {
+    let tmp = small_scene_dir();
+    let d = tmp.path();
+    let want = "scenario: [unknown-period] outputs.vtk_periods: period 5 is not one of the schedule's periods (1–2)";
+    for args in [
+        &["run", "scenario.toml", "--out", "bad", "--vtk"][..],
+        &["validate", "scenario.toml"][..],
+    ] {
+        let mut args = args.to_vec();
+        args.extend(["--set", "outputs.vtk_periods=[1, 5]"]);
+        let o = caveflow_in(&args, d);
+        let err = String::from_utf8_lossy(&o.stderr);
+        eprintln!("{args:?}: {err}");
+        assert_eq!(o.status.code(), Some(1), "{args:?}: {err}");
+        assert!(err.contains(want), "{args:?}: {err}");
+        assert!(
+            !err.contains("period 1 "),
+            "{args:?}: only the bad period: {err}"
+        );
+    }
+    assert!(!d.join("bad").exists(), "nothing written");
+    // A period of the full schedule that `--keep-periods` drops is left out, not refused.
+    let kept = ["--vtk", "--keep-periods", "1"];
+    run_in(
+        d,
+        "kept",
+        &[&kept[..], &["--set", "outputs.vtk_periods=[1, 2]"]].concat(),
+    );
+    assert_eq!(
+        collection(&d.join("kept/vtk/imz.pvd")),
+        [(1, "imz/imz_1.vtp".to_string())]
+    );
+}
+
+/// On a column drawn through breakthrough, the exported IMZ stops at the free surface of
+/// each period: no point of any wall lies above it, and the cut acted (disks dropped or
+/// cut, points on the surface). The surfaces come from the engine's moment surfaces (the
+/// VTK periods are not surface periods here), as a run with `--vtk` has them.
+///
+/// Tolerance: none. Each point is read back as the Float64 the writer computed, and the
+/// surface under it through the same `FreeSurface::at` (on a lattice row the sections'
+/// `surface_at`, a unit test of `output::figures`), so a point above the surface by any
+/// amount is one the export failed to cut.
+#[test]
+fn exported_imz_walls_stop_at_the_free_surface_of_their_period() {
+    // The surface-cone near-field column (`surface_cone`), drawn in 12 periods of 2.5 kg:
+    // breakthrough at about 5 kg.
+    let periods = 12;
+    let scene = cone_column(1.2, 0.5, periods, 0.0025);
+    let mut sc = cone_scenario(periods, 0.0125, 0.0005);
+    sc.outputs.surface_periods = vec![];
+    sc.outputs.vtk_periods = (1..=periods as i64).collect();
+    let t0 = std::time::Instant::now();
+    let out = run(&scene, &sc);
+    eprintln!("run: {:.1} s", t0.elapsed().as_secs_f64());
+    assert!(out.surface.period.iter().all(|&p| p == periods as i64));
+    let tmp = tempfile::tempdir().unwrap();
+    let vtk_periods = scene.vtk_periods(&sc.outputs);
+    write_vtk(tmp.path(), &scene, &out, &vtk_periods).unwrap();
+    let imz = &out.imz;
+    let top = scene.blocks.z_max();
+    let (mut through, mut dropped, mut on, mut total) = (0, 0, 0, 0);
+    for (p, rows) in by_period(&imz.period) {
+        let surface = FreeSurface::of(&out, p);
+        let axis = surface.at(0.0, 0.0).expect("a surface every period");
+        let path = tmp.path().join(format!("imz/imz_{p}.vtp"));
+        check_imz_file(&path, &scene, imz, p, &rows, &surface);
+        let piece = poly(&path);
+        let xyz = piece.points.cast_into::<f64>().unwrap();
+        for q in xyz.chunks(3) {
+            let s = surface.at(q[0], q[1]).unwrap();
+            assert!(
+                q[2] <= s,
+                "period {p}: IMZ point {q:?} above the surface {s}"
+            );
+            on += usize::from(q[2] == s);
+            total += 1;
+        }
+        let reached = rows.iter().any(|&r| imz.z_top[r] > axis);
+        let written: std::collections::HashSet<i64> =
+            i64s(&piece.data.cell, "disk").into_iter().collect();
+        let gone = rows.len() - written.len();
+        eprintln!(
+            "period {p}: surface at the axis {axis:.3} m (top {top:.3}), {} disks, {gone} above the surface, {} points",
+            rows.len(),
+            xyz.len() / 3
+        );
+        through += usize::from(reached);
+        dropped += gone;
+    }
+    eprintln!("{through} periods through the surface, {dropped} disks dropped, {on} of {total} points on the surface");
+    assert!(through >= 3, "the IMZ breaks through in {through} periods");
+    assert!(dropped > 0 && on > 0, "the cut acted");
 }

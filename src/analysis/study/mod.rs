@@ -55,6 +55,7 @@
 //! DIR/variants/<variant>/summary.json    its summary row
 //! DIR/variants/<variant>/manifest.json   its run manifest (inputs, resolution, balance)
 //! DIR/summary.parquet                    one row per complete variant (schemas/study_summary.json)
+//! DIR/report.html, DIR/charts/*.svg       the variants side by side (report::write_study_report)
 //! ```
 //!
 //! for the tables extraction, imz, drawn, air_gap and surface, written by
@@ -111,11 +112,13 @@
 //! first; `--plan` the study file only, and `--variant` that variant's tables.
 
 pub mod plan;
+pub mod report;
 pub mod runner;
 pub mod spec;
 pub mod summary;
 
 pub use plan::{Study, Variant};
+pub use report::write_study_report;
 pub use runner::{run_study, run_variant, Layout, Outcome};
 pub use spec::{StudyError, StudyProblems};
 pub use summary::SummaryRow;

@@ -11,9 +11,9 @@ use arrow::record_batch::RecordBatch;
 use serde::{Deserialize, Serialize};
 
 use super::plan::Swept;
-use crate::analysis::sweep::dilution_entries;
 use crate::engine::result::RunOutput;
 use crate::model::Scene;
+use crate::output::dilution::dilution_entries;
 use crate::output::{write_batch, OutputError};
 use crate::schema::{arrow_field, Kind, STUDY_SUMMARY};
 

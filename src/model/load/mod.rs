@@ -16,7 +16,9 @@
 //! period lengths are positive; a mean fragment size above 10 m or an opening width above
 //! 100 m is `units-mm`; grades, percolation coefficients and tonnes are not negative, and
 //! no schedule cell may exceed the block model's in-situ tonnes (`tonnes-exceed-model`). A drawpoint must lie within the
-//! grid's horizontal extent and no more than one block height below or above it.
+//! grid's horizontal extent and no more than one block height below or above it. Every
+//! period `outputs.vtk_periods` names must be a period of the schedule (`unknown-period`,
+//! reported against the scenario).
 //!
 //! # Calibration
 //! The scenario's `[calibration]` factors ([`Calibration::apply`](crate::model::scenario::Calibration::apply))
@@ -43,8 +45,8 @@ pub use drawpoints::MAX_OPENING_WIDTH;
 use std::path::{Path, PathBuf};
 
 use crate::io::{
-    read_schedule_into, read_table_into, Collector, InputWarning, Problem, Problems, ScheduleForm,
-    ScheduleTable, Table,
+    read_schedule_into, read_table_into, Collector, InputWarning, Periods, Problem, Problems,
+    ScheduleForm, ScheduleTable, Table,
 };
 use crate::model::{Scenario, Scene};
 use crate::schema::{TableSpec, BLOCK_MODEL, DRAWBELLS, DRAWPOINTS, PERIODS};
@@ -156,6 +158,9 @@ pub fn load_scene(sc: &Scenario) -> Result<LoadedScene, Problems> {
         (None, Some(s)) => Some(l.periods_from_schedule(s)),
         (None, None) => None,
     };
+    if let Some(p) = &periods {
+        l.check_chosen_periods("outputs.vtk_periods", &sc.outputs.vtk_periods, p);
+    }
     if let (Some(t), Some(b)) = (&trace, &blocks) {
         l.check_trace(t, b);
     }
@@ -228,6 +233,21 @@ impl Loader {
         self.input(role, path, &t.sha256, t.len());
         self.warnings.extend(t.warnings.iter().cloned());
         Some(t)
+    }
+
+    /// Each period the scenario key `key` names (`chosen`) must be one of `periods`:
+    /// `unknown-period`, reported against the scenario.
+    fn check_chosen_periods(&mut self, key: &str, chosen: &[i64], periods: &Periods) {
+        for c in chosen.iter().filter(|&&c| periods.find(c).is_none()) {
+            self.problems.push(Problem::file(
+                "scenario",
+                "unknown-period",
+                format!(
+                    "{key}: period {c} is not one of the schedule's periods ({})",
+                    periods.span()
+                ),
+            ));
+        }
     }
 
     fn read_schedule(&mut self, path: &Path) -> Option<ScheduleTable> {

@@ -239,6 +239,24 @@ pub(super) fn axis_title_style(vertical: bool) -> TextStyle<'static> {
     }
 }
 
+/// The axis titles of frame `f`: `x` centred `below` px under it, `y` rotated, centred on
+/// its height, 18 px from the image's left edge.
+pub(super) fn axis_titles<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    f: &Frame,
+    (x, y): (&str, &str),
+    below: i32,
+    pen: Pen,
+) -> Result<(), DrawError>
+where
+    DB::ErrorType: 'static,
+{
+    let at_x = (f.left + f.size.0 as i32 / 2, f.bottom() + below);
+    put_text(root, x, at_x, &axis_title_style(false), pen)?;
+    let at_y = (18, f.top + f.size.1 as i32 / 2);
+    put_text(root, y, at_y, &axis_title_style(true), pen)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

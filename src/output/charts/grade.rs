@@ -18,7 +18,7 @@ use super::{
     axis_title_style, draw_axes, draw_grid, ensure_font, finite_runs, put_text, text, text_width,
     widest_tick_label, write_chart, x_ticks, y_ticks, AxisLabels, ChartError, DrawError, Frame,
     IntoChartError, Legend, LegendEntry, Pen, Render, Sample, Ticks, AXIS_TITLE_W, BLOCK_COLOUR,
-    MAX_SIDE, MIN_W, PREDICTED_COLOUR, SAMPLED_COLOUR, TICK_GAP, TITLE_H,
+    DILUTION_COLOUR, MAX_SIDE, MIN_W, PREDICTED_COLOUR, SAMPLED_COLOUR, TICK_GAP, TITLE_H,
 };
 
 /// Most panels on one grade-tonnage image; more series are split over several pages.
@@ -46,6 +46,8 @@ pub struct GradeSeries {
     pub sampled: Option<Vec<(f64, f64)>>,
     /// Block grade under uniform drawdown as (cumulative tonnes, grade), drawn dashed.
     pub block_grade: Option<Vec<(f64, f64)>>,
+    /// Dilution entry (`output::dilution`), t: drawn as a dotted vertical line.
+    pub dilution_entry: Option<f64>,
 }
 
 /// Draw grade against cumulative tonnes, one small panel per drawpoint, to `path` (`.png` or
@@ -334,6 +336,15 @@ impl<'a> GradePage<'a> {
                 ))?;
             }
         }
+        if let Some(t) = s.dilution_entry.filter(|t| t.is_finite()) {
+            let x = t / ax.tonnes_per_unit;
+            root.draw(&DashedPathElement::new(
+                f.path(&[(x, ax.y.0), (x, ax.y.1)]),
+                2,
+                3,
+                DILUTION_COLOUR.stroke_width(2),
+            ))?;
+        }
         let predicted = ax.scale(
             s.cum_tonnes
                 .iter()
@@ -367,7 +378,7 @@ impl<'a> GradePage<'a> {
 fn grade_legend(series: &[&GradeSeries]) -> Vec<LegendEntry> {
     let mut entries = vec![LegendEntry {
         sample: Sample::Line(PREDICTED_COLOUR, 2),
-        label: "Predicted",
+        label: "Predicted".into(),
     }];
     if series
         .iter()
@@ -375,7 +386,7 @@ fn grade_legend(series: &[&GradeSeries]) -> Vec<LegendEntry> {
     {
         entries.push(LegendEntry {
             sample: Sample::Dot(SAMPLED_COLOUR),
-            label: "Sampled",
+            label: "Sampled".into(),
         });
     }
     if series
@@ -384,7 +395,13 @@ fn grade_legend(series: &[&GradeSeries]) -> Vec<LegendEntry> {
     {
         entries.push(LegendEntry {
             sample: Sample::Dashed(BLOCK_COLOUR),
-            label: "Block grade (uniform drawdown)",
+            label: "Block grade (uniform drawdown)".into(),
+        });
+    }
+    if series.iter().any(|s| s.dilution_entry.is_some()) {
+        entries.push(LegendEntry {
+            sample: Sample::Dashed(DILUTION_COLOUR),
+            label: "Dilution entry (10% waste)".into(),
         });
     }
     entries
@@ -482,6 +499,7 @@ mod tests {
                     predicted,
                     sampled: Some(sampled),
                     block_grade: (d % 2 == 0).then_some(block),
+                    dilution_entry: (d % 3 == 0).then_some(entry),
                 }
             })
             .collect();

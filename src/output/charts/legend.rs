@@ -34,7 +34,7 @@ pub(super) struct LegendEntry {
     /// What the sample looks like.
     pub(super) sample: Sample,
     /// Its label.
-    pub(super) label: &'static str,
+    pub(super) label: std::borrow::Cow<'static, str>,
 }
 
 /// Legend text style.
@@ -66,7 +66,7 @@ impl Legend {
         let style = legend_style();
         let widths = entries
             .iter()
-            .map(|e| Ok(SAMPLE_W + 6 + text_width(&style, e.label)? as u32))
+            .map(|e| Ok(SAMPLE_W + 6 + text_width(&style, &e.label)? as u32))
             .collect::<Result<Vec<u32>, DrawError>>()?;
         let avail = width.saturating_sub(2 * LEGEND_PAD);
         let mut rows: Vec<(Vec<usize>, u32)> = vec![(Vec::new(), 0)];
@@ -144,7 +144,7 @@ impl Legend {
                     root.draw(&TriangleMarker::new((x + sw / 2, cy), 7, colour.filled()))?;
                 }
             }
-            put_text(root, entry.label, (x + sw + 6, cy), &legend_style(), pen)?;
+            put_text(root, &entry.label, (x + sw + 6, cy), &legend_style(), pen)?;
         }
         Ok(())
     }

@@ -21,6 +21,9 @@
 //!   [`section_chart`]);
 //! - `grade`: grade against cumulative tonnes in small multiples ([`GradeSeries`],
 //!   [`grade_tonnage_chart`]);
+//! - `plan_map`: drawpoints on a plan coloured by a value ([`plan_map_chart`]);
+//! - `histogram`: a distribution as bars with guide lines ([`histogram_chart`]);
+//! - `lines`: curves overlaid on shared axes with a legend ([`line_chart`]);
 //! - `reconcile`, `stability`, `stress`, `sweep`: the analysis charts.
 //!
 //! This file holds what they share: [`ChartFormat`], [`ChartError`], the palette and the
@@ -29,7 +32,10 @@
 mod axes;
 mod font;
 mod grade;
+mod histogram;
 mod legend;
+mod lines;
+mod plan_map;
 mod reconcile;
 mod render;
 mod section;
@@ -38,10 +44,11 @@ pub mod stress;
 mod sweep;
 
 pub use self::grade::{grade_tonnage_chart, GradeSeries, MAX_PANELS};
+pub use self::histogram::histogram_chart;
 pub use self::legend::fmt_mass;
-pub use self::reconcile::{
-    diverging, error_map_chart, profile_chart, scatter_chart, MapPoint, Profile, ScatterPoint,
-};
+pub use self::lines::{line_chart, LineSeries};
+pub use self::plan_map::{diverging, plan_map_chart, MapPoint, MapScale, MAX_LABELS};
+pub use self::reconcile::{profile_chart, scatter_chart, Profile, ScatterPoint};
 pub use self::section::{iez_outline, imz_outline, section_chart, Section};
 pub use self::stability::{stability_chart, RegionBand};
 pub use self::sweep::{sweep_chart, SweepPoint};
@@ -87,8 +94,30 @@ const GRID_COLOUR: RGBColor = RGBColor(228, 228, 228);
 const PREDICTED_COLOUR: RGBColor = RGBColor(31, 119, 180);
 /// Sampled grade points.
 const SAMPLED_COLOUR: RGBColor = RGBColor(214, 39, 40);
+/// Dilution entry, a dotted vertical line on grade panels.
+const DILUTION_COLOUR: RGBColor = RGBColor(200, 0, 160);
 /// Block grade (uniform drawdown) dashed line.
 const BLOCK_COLOUR: RGBColor = RGBColor(70, 70, 70);
+
+/// Colours of series told apart by colour alone (zones, study variants): Tableau 10,
+/// repeated when there are more.
+const SERIES_COLOURS: [RGBColor; 10] = [
+    RGBColor(31, 119, 180),
+    RGBColor(255, 127, 14),
+    RGBColor(44, 160, 44),
+    RGBColor(214, 39, 40),
+    RGBColor(148, 103, 189),
+    RGBColor(140, 86, 75),
+    RGBColor(227, 119, 194),
+    RGBColor(127, 127, 127),
+    RGBColor(188, 189, 34),
+    RGBColor(23, 190, 207),
+];
+
+/// The colour of series `k`.
+fn series_colour(k: usize) -> RGBColor {
+    SERIES_COLOURS[k % SERIES_COLOURS.len()]
+}
 
 /// Height of the title strip, px.
 const TITLE_H: u32 = 44;

@@ -1,10 +1,9 @@
 //! Back-analysis charts (summary §8): predicted against sampled grade as a scatter with the
-//! 1:1 line, and a plan map of the error per drawpoint.
+//! 1:1 line, and the profiles of a calibration's fitted factors. The plan map of the error
+//! per drawpoint is [`plan_map_chart`](super::plan_map_chart) on its diverging scale.
 //!
 //! A child of [`charts`](super) so it shares the bundled font, the glyph-by-glyph text, the
-//! axes and the atomic writer. The map's colour scale is diverging and symmetric about 0:
-//! blue where the model predicts less than was sampled, red where it predicts more, white
-//! where it is right, so the eye finds the biased parts of the panel first.
+//! axes and the atomic writer.
 
 use std::path::Path;
 
@@ -14,21 +13,10 @@ use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, VPos};
 
 use super::{
-    axis_title_style, draw_axes, draw_grid, ensure_font, put_text, text, write_chart, x_ticks,
-    y_ticks, AxisLabels, ChartError, DrawError, Frame, Pen, Render, Ticks, AXIS_COLOUR, TITLE_H,
+    axis_title_style, draw_axes, draw_grid, ensure_font, put_text, series_colour, text,
+    write_chart, x_ticks, y_ticks, AxisLabels, ChartError, DrawError, Frame, Pen, Render, Ticks,
+    AXIS_COLOUR, TITLE_H,
 };
-
-/// Zone colours (Tableau 10), repeated when there are more zones.
-const ZONE_COLOURS: [RGBColor; 8] = [
-    RGBColor(31, 119, 180),
-    RGBColor(255, 127, 14),
-    RGBColor(44, 160, 44),
-    RGBColor(214, 39, 40),
-    RGBColor(148, 103, 189),
-    RGBColor(140, 86, 75),
-    RGBColor(227, 119, 194),
-    RGBColor(127, 127, 127),
-];
 
 const SIDE: u32 = 640;
 const LEFT: i32 = 80;
@@ -98,7 +86,7 @@ struct Scatter {
 }
 
 /// The grid of each frame; the ticks of the first frame.
-fn grids<DB: DrawingBackend>(
+pub(super) fn grids<DB: DrawingBackend>(
     root: &DrawingArea<DB, Shift>,
     frames: &[Frame],
 ) -> Result<(Ticks, Ticks), DrawError>
@@ -112,10 +100,6 @@ where
         first.get_or_insert((xt, yt));
     }
     Ok(first.unwrap_or_else(|| (Ticks::empty(), Ticks::empty())))
-}
-
-fn zone_colour(z: usize) -> RGBColor {
-    ZONE_COLOURS[z % ZONE_COLOURS.len()]
 }
 
 impl Render for Scatter {
@@ -152,7 +136,7 @@ impl Render for Scatter {
             root.draw(&Circle::new(
                 f.px((p.sampled, p.predicted)),
                 3,
-                zone_colour(p.zone).mix(0.7).filled(),
+                series_colour(p.zone).mix(0.7).filled(),
             ))?;
         }
         draw_axes(root, f, (&xt, &yt), AxisLabels { x: true, y: true }, pen)?;
@@ -175,168 +159,10 @@ impl Render for Scatter {
         let x0 = f.right() + 24;
         for (k, z) in self.zones.iter().enumerate() {
             let y = f.top + 10 + 22 * k as i32;
-            root.draw(&Circle::new((x0, y), 5, zone_colour(k).filled()))?;
+            root.draw(&Circle::new((x0, y), 5, series_colour(k).filled()))?;
             let name = if z.is_empty() { "(no zone)" } else { z };
             put_text(root, name, (x0 + 12, y), &legend, pen)?;
         }
-        Ok(())
-    }
-}
-
-/// One drawpoint on the error map.
-#[derive(Debug, Clone, PartialEq)]
-pub struct MapPoint {
-    /// Easting, m.
-    pub x: f64,
-    /// Northing, m.
-    pub y: f64,
-    /// The value coloured (e.g. the bias, predicted − sampled); NaN: drawn hollow.
-    pub value: f64,
-    /// Label set beside the point (the drawpoint name).
-    pub label: String,
-}
-
-/// Diverging colour of t in [−1, 1]: blue (−1), white (0), red (+1).
-pub fn diverging(t: f64) -> RGBColor {
-    let t = if t.is_finite() {
-        t.clamp(-1.0, 1.0)
-    } else {
-        0.0
-    };
-    let (end, w) = if t < 0.0 {
-        ((33.0, 102.0, 172.0), -t)
-    } else {
-        ((178.0, 24.0, 43.0), t)
-    };
-    let mix = |c: f64| (247.0 + w * (c - 247.0)).round() as u8;
-    RGBColor(mix(end.0), mix(end.1), mix(end.2))
-}
-
-/// Plan map (Easting, Northing on equal axes) of drawpoints coloured by `value` on a
-/// diverging scale symmetric about 0, with a colour bar, to `path`, atomically.
-pub fn error_map_chart(
-    path: &Path,
-    points: &[MapPoint],
-    title: &str,
-    value_label: &str,
-) -> Result<(), ChartError> {
-    ensure_font(path)?;
-    let (mut x, mut y) = (
-        (f64::INFINITY, f64::NEG_INFINITY),
-        (f64::INFINITY, f64::NEG_INFINITY),
-    );
-    let mut scale = 0.0f64;
-    for p in points {
-        x = (x.0.min(p.x), x.1.max(p.x));
-        y = (y.0.min(p.y), y.1.max(p.y));
-        if p.value.is_finite() {
-            scale = scale.max(p.value.abs());
-        }
-    }
-    if !(x.0.is_finite() && y.0.is_finite()) {
-        (x, y) = ((0.0, 1.0), (0.0, 1.0));
-    }
-    // Equal aspect: both spans padded to the larger one.
-    let span = (x.1 - x.0).max(y.1 - y.0).max(1.0) * 1.1;
-    let (cx, cy) = (0.5 * (x.0 + x.1), 0.5 * (y.0 + y.1));
-    let side = SIDE - TITLE_H - 10 - BOTTOM as u32;
-    write_chart(
-        path,
-        &ErrorMap {
-            points: points.to_vec(),
-            scale: if scale > 0.0 { scale } else { 1.0 },
-            frame: Frame {
-                left: LEFT,
-                top: TITLE_H as i32 + 10,
-                size: (side, side),
-                x: (cx - span / 2.0, cx + span / 2.0),
-                y: (cy - span / 2.0, cy + span / 2.0),
-            },
-            title: title.to_string(),
-            value_label: value_label.to_string(),
-        },
-    )
-}
-
-struct ErrorMap {
-    points: Vec<MapPoint>,
-    scale: f64,
-    frame: Frame,
-    title: String,
-    value_label: String,
-}
-
-impl Render for ErrorMap {
-    fn size(&self) -> (u32, u32) {
-        (LEFT as u32 + self.frame.size.0 + RIGHT as u32 + 20, SIDE)
-    }
-
-    fn title(&self) -> &str {
-        &self.title
-    }
-
-    fn draw_body<DB: DrawingBackend>(
-        &self,
-        root: &DrawingArea<DB, Shift>,
-        pen: Pen,
-    ) -> Result<(), DrawError>
-    where
-        DB::ErrorType: 'static,
-    {
-        let f = &self.frame;
-        let (xt, yt) = grids(root, &[*f])?;
-        let small = text(10.0, HPos::Left, VPos::Center);
-        for p in &self.points {
-            let c = f.px((p.x, p.y));
-            if p.value.is_finite() {
-                root.draw(&Circle::new(c, 8, diverging(p.value / self.scale).filled()))?;
-            }
-            root.draw(&Circle::new(c, 8, AXIS_COLOUR.stroke_width(1)))?;
-            put_text(root, &p.label, (c.0 + 10, c.1), &small, pen)?;
-        }
-        draw_axes(root, f, (&xt, &yt), AxisLabels { x: true, y: true }, pen)?;
-        put_text(
-            root,
-            "Easting (m)",
-            (f.left + f.size.0 as i32 / 2, f.bottom() + 45),
-            &axis_title_style(false),
-            pen,
-        )?;
-        put_text(
-            root,
-            "Northing (m)",
-            (18, f.top + f.size.1 as i32 / 2),
-            &axis_title_style(true),
-            pen,
-        )?;
-        // Colour bar: +scale at the top, −scale at the bottom.
-        let (bx, bw) = (f.right() + 40, 18);
-        let (bt, bb) = (f.top + 20, f.bottom() - 20);
-        for py in bt..=bb {
-            let t = 1.0 - 2.0 * f64::from(py - bt) / f64::from(bb - bt);
-            root.draw(&PathElement::new(
-                vec![(bx, py), (bx + bw, py)],
-                diverging(t),
-            ))?;
-        }
-        root.draw(&Rectangle::new([(bx, bt), (bx + bw, bb)], AXIS_COLOUR))?;
-        let label = text(12.0, HPos::Left, VPos::Center);
-        for (t, py) in [(1.0, bt), (0.0, (bt + bb) / 2), (-1.0, bb)] {
-            put_text(
-                root,
-                &format!("{:+.3}", t * self.scale),
-                (bx + bw + 6, py),
-                &label,
-                pen,
-            )?;
-        }
-        put_text(
-            root,
-            &self.value_label,
-            (bx - 2, bt - 12),
-            &text(12.0, HPos::Left, VPos::Center),
-            pen,
-        )?;
         Ok(())
     }
 }
@@ -436,7 +262,7 @@ impl Render for Profiles {
                 if b > a {
                     root.draw(&Rectangle::new(
                         [f.px((a, f.y.1)), f.px((b, f.y.0))],
-                        ZONE_COLOURS[0].mix(0.15).filled(),
+                        series_colour(0).mix(0.15).filled(),
                     ))?;
                 }
             }
@@ -449,7 +275,7 @@ impl Render for Profiles {
             ))?;
             root.draw(&PathElement::new(
                 vline(p.fitted),
-                ZONE_COLOURS[0].stroke_width(2),
+                series_colour(0).stroke_width(2),
             ))?;
             let pts: Vec<(f64, f64)> = p
                 .points
@@ -459,7 +285,7 @@ impl Render for Profiles {
                 .collect();
             root.draw(&PathElement::new(f.path(&pts), AXIS_COLOUR.stroke_width(1)))?;
             for &q in &pts {
-                root.draw(&Circle::new(f.px(q), 4, ZONE_COLOURS[3].filled()))?;
+                root.draw(&Circle::new(f.px(q), 4, series_colour(3).filled()))?;
             }
             draw_axes(root, f, (&xt, &yt), AxisLabels { x: true, y: true }, pen)?;
             put_text(
@@ -485,19 +311,5 @@ impl Render for Profiles {
             )?;
         }
         Ok(())
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn diverging_ends_and_middle() {
-        assert_eq!(diverging(0.0), RGBColor(247, 247, 247));
-        assert_eq!(diverging(-1.0), RGBColor(33, 102, 172));
-        assert_eq!(diverging(1.0), RGBColor(178, 24, 43));
-        assert_eq!(diverging(5.0), diverging(1.0));
-        assert_eq!(diverging(f64::NAN), diverging(0.0));
     }
 }

@@ -327,49 +327,49 @@ fn section_legend(section: &Section) -> Vec<LegendEntry> {
     if !section.layers.is_empty() {
         entries.push(LegendEntry {
             sample: Sample::Layers,
-            label: "Marker layers (initially horizontal)",
+            label: "Marker layers (initially horizontal)".into(),
         });
     }
     if !section.imz.is_empty() {
         entries.push(LegendEntry {
             sample: Sample::Line(IMZ_COLOUR, 3),
-            label: "IMZ (isolated movement zone)",
+            label: "IMZ (isolated movement zone)".into(),
         });
     }
     if !section.iez.is_empty() {
         entries.push(LegendEntry {
             sample: Sample::Line(IEZ_COLOUR, 3),
-            label: "IEZ (origin of drawn material)",
+            label: "IEZ (origin of drawn material)".into(),
         });
     }
     if !section.surface.is_empty() {
         entries.push(LegendEntry {
             sample: Sample::Line(SURFACE_COLOUR, 3),
-            label: "Free surface",
+            label: "Free surface".into(),
         });
     }
     if !section.uncaved.is_empty() {
         entries.push(LegendEntry {
             sample: Sample::Line(UNCAVED_FILL, 8),
-            label: "Uncaved ground",
+            label: "Uncaved ground".into(),
         });
     }
     if !section.air.is_empty() {
         entries.push(LegendEntry {
             sample: Sample::Line(AIR_FILL, 8),
-            label: "Air gap",
+            label: "Air gap".into(),
         });
     }
     if !section.traces.is_empty() {
         entries.push(LegendEntry {
             sample: Sample::Line(TRACE_COLOUR, 2),
-            label: "Trace point paths (dot: given position)",
+            label: "Trace point paths (dot: given position)".into(),
         });
     }
     if !section.drawpoints.is_empty() {
         entries.push(LegendEntry {
             sample: Sample::Triangle(BLACK),
-            label: "Drawpoint",
+            label: "Drawpoint".into(),
         });
     }
     entries

@@ -160,17 +160,17 @@ impl<'a> StressPlot<'a> {
         let right = BAR_GAP + BAR_W + BAR_LABELS + SEC_RIGHT;
         let mut entries = vec![LegendEntry {
             sample: Sample::Line(IMZ_COLOUR, 3),
-            label: "IMZ",
+            label: "IMZ".into(),
         }];
         if !chart.flagged.is_empty() {
             entries.push(LegendEntry {
                 sample: Sample::Line(FLAG_COLOUR, 2),
-                label: "Levels with potential stress-driven flow (interactive draw)",
+                label: "Levels with potential stress-driven flow (interactive draw)".into(),
             });
         }
         entries.push(LegendEntry {
             sample: Sample::Line(UNCAVED_COLOUR, 8),
-            label: "Uncaved",
+            label: "Uncaved".into(),
         });
         let legend_h = Legend::new(entries.clone(), MIN_W)?.height;
         let w_max = MAX_SIDE.saturating_sub(left + right).max(120);
