@@ -98,8 +98,9 @@
 //! name, hash, `--set` list, input paths and hashes, seed, swept values): the one place the
 //! expansion lives. It checks the study file (keys, values, that the tables exist) but
 //! not each variant's tables, which that variant's run checks (exit 1): a driver then runs
-//! the good variants and reports the bad. `caveflow study STUDY.toml --variant NAME --out DIR` runs one variant
-//! into the layout (what a task of a cluster driver calls), and `caveflow study STUDY.toml
+//! the good variants and reports the bad. `caveflow study STUDY.toml --variant NAME --out DIR
+//! [--threads T]` runs one variant into the layout in a pool of T threads (default every
+//! core; what a task of a cluster driver calls, with T its CPUs), and `caveflow study STUDY.toml
 //! --out DIR --summary-only` run after every task writes the summary from the complete
 //! variants and runs none (exit 1, naming them, when some are not complete).
 //! `src/python/caveflow_ray/` is such a driver: one Ray task per variant, with retries
