@@ -424,7 +424,8 @@ pub(crate) fn calibrate_cli(
 /// their predictions back from its dataset: the same `calibration.json`, byte for byte, as
 /// the runs made in memory ([`InProcess`]) on the scene loaded from the same files. Run
 /// again into the same directory it makes no run (each is complete, by content hash) and
-/// writes the same file; a runner command that fails is an error that names it.
+/// writes the same file; after a kill that left two runs incomplete, it makes those two
+/// only; a runner command that fails is an error that names it.
 #[test]
 fn calibrate_runs_as_a_study_fit_as_in_memory_and_resume() {
     let dir = tempfile::tempdir().unwrap();
@@ -472,6 +473,20 @@ fn calibrate_runs_as_a_study_fit_as_in_memory_and_resume() {
         "{stdout}"
     );
     assert_eq!(again, json);
+    // Killed part way: two runs not complete (their `_SUCCESS` gone, as a kill before it
+    // leaves them). Those two are made again, no other, and the same file is written.
+    let variants = out.join("runs/variants");
+    let mut names: Vec<_> = std::fs::read_dir(&variants)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    names.sort();
+    for v in &names[..2] {
+        std::fs::remove_file(v.join("_SUCCESS")).unwrap();
+    }
+    let (stdout, resumed) = calibrate_cli(&args, &out, &[]);
+    assert_eq!(made(&stdout), 2, "{stdout}");
+    assert_eq!(resumed, json);
 
     // A runner that fails.
     let mut all: Vec<&str> = args.iter().map(String::as_str).collect();
