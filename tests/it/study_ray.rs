@@ -1,6 +1,6 @@
 //! Integration tests: the Ray driver (`src/python/caveflow_ray`), `caveflow study
-//! --summary-only`, and DuckDB reading a study's dataset, on the studies of the tiny
-//! two-drawpoint box (`fixtures::study_scene_files`).
+//! --summary-only`, and DuckDB reading a study's dataset, on the demo's example study and
+//! on the studies of the tiny two-drawpoint box (`fixtures::study_scene_files`).
 //!
 //! The Python-backed tests need a Python with `ray` and `duckdb` (`.ci/run` makes one under
 //! `~/.cache/caveflow/venv`): its path in `CAVEFLOW_PY`. Without it they print a note and
@@ -16,7 +16,7 @@ use arrow::array::{Array, AsArray, RecordBatch};
 use arrow::datatypes::Float64Type;
 
 use crate::fixtures::{
-    assert_same_study, caveflow_out, dataset_files, read_parquet, repo, study_file,
+    assert_same_study, caveflow_out, dataset_files, demo_copy, read_parquet, repo, study_file,
     study_scene_files, STUDY_GRID_ALT,
 };
 
@@ -95,14 +95,30 @@ fn summary_only_runs_nothing_and_names_the_variants_not_complete() {
     assert_eq!(r.status.code(), Some(1));
 }
 
+/// The demo's example study (`data/study.toml`: 2 Urad fragment factors × 2 schedules),
+/// cut to its first 6 periods to stay cheap, run by the local runner and by the Ray driver:
+/// the same Parquet, file for file and byte for byte; run again on Ray, nothing is
+/// submitted and nothing changes.
 #[test]
 fn the_ray_driver_writes_the_parquet_of_the_local_runner() {
     let Some(py) = python("the_ray_driver_writes_the_parquet_of_the_local_runner") else {
         return;
     };
-    let tmp = tempfile::tempdir().unwrap();
-    study_scene_files(tmp.path());
-    let path = study_file(tmp.path(), STUDY_GRID_ALT);
+    let tmp = demo_copy();
+    fs::copy(
+        repo("data/schedule_slow.csv"),
+        tmp.path().join("schedule_slow.csv"),
+    )
+    .unwrap();
+    let study = fs::read_to_string(repo("data/study.toml"))
+        .unwrap()
+        .replace(
+            "scenario = \"scenario.toml\"\n",
+            "scenario = \"scenario.toml\"\nkeep_periods = 6\n",
+        );
+    assert!(study.contains("keep_periods = 6"));
+    let path = tmp.path().join("study.toml");
+    fs::write(&path, study).unwrap();
     let s = path.to_str().unwrap();
     let (local, ray) = (tmp.path().join("local"), tmp.path().join("ray"));
     let r = caveflow_out(&["study", s, "--out", local.to_str().unwrap(), "--jobs", "2"]);
@@ -111,9 +127,9 @@ fn the_ray_driver_writes_the_parquet_of_the_local_runner() {
     assert!(r.status.success());
     let stdout = String::from_utf8_lossy(&r.stdout);
     assert!(stdout.contains("4 variant(s), 4 to run on Ray"), "{stdout}");
-    // 4 variants × (3 extraction, 3 imz, 3 drawn, and air_gap/surface where written).
+    // 4 variants × 6 periods × (extraction, imz, drawn), and air_gap/surface where written.
     let n = assert_same_study(&local, &ray);
-    assert!(n >= 4 * 9, "{n} Parquet files");
+    assert!(n >= 4 * 18, "{n} Parquet files");
     assert_eq!(read_parquet(&ray.join("summary.parquet")).num_rows(), 4);
     // Run again: every variant complete, none submitted, the same files.
     let before = dataset_files(&ray);
