@@ -307,11 +307,11 @@ fn cards(scene: &Scene, run: &RunOutput, per: &PerDrawpoint) -> Vec<(String, Str
         "drawpoints short".into(),
     ));
     c.push((
-        format!("{:.3}", b.correction.median),
-        "median correction".into(),
+        format!("{:.3}", b.correction.drawpoint_median),
+        "correction, median of the drawpoints".into(),
     ));
     c.push((
-        format!("{} m", run.resolution.marker_spacing),
+        format!("{} m", metres(run.resolution.marker_spacing)),
         "marker spacing".into(),
     ));
     c
@@ -495,10 +495,10 @@ fn resolution(page: &mut Page, scene: &Scene, run: &RunOutput, per: &PerDrawpoin
     let res = &run.resolution;
     let b = &run.balance;
     let rows = [
-        ("disk thickness h (m)", format!("{}", res.layer_thickness)),
-        ("marker spacing (m)", format!("{}", res.marker_spacing)),
+        ("disk thickness h (m)", metres(res.layer_thickness)),
+        ("marker spacing (m)", metres(res.marker_spacing)),
         ("draw increment (t)", format!("{:.1}", res.draw_increment)),
-        ("max marker move (m)", format!("{}", res.max_marker_move)),
+        ("max marker move (m)", metres(res.max_marker_move)),
         (
             "markers mobilised / drawn",
             format!("{} / {}", b.markers_mobilised, b.markers_drawn),
@@ -517,4 +517,10 @@ fn resolution(page: &mut Page, scene: &Scene, run: &RunOutput, per: &PerDrawpoin
          measures it, and `resolution.target_grade_rmse` sets a target.",
         100.0 * err
     ));
+}
+
+/// A length to the millimetre, without trailing zeros ("3.41", "1.9", "4").
+fn metres(v: f64) -> String {
+    let s = format!("{v:.3}");
+    s.trim_end_matches('0').trim_end_matches('.').to_string()
 }
