@@ -5,7 +5,9 @@
 //! drawpoint and the predicted-against-sampled scatter side by side; predicted and sampled
 //! grade against cumulative tonnes for the drawpoints that miss most, with the block grade
 //! under uniform drawdown (summary Figs 31–32); the zone table; every drawpoint, worst first;
-//! and what each number means. The charts are also left beside the page as SVG files.
+//! and what each number means. The charts are also left beside the page as SVG files. The
+//! page is built with the run report's [`Page`], so the two
+//! look alike and share what "self-contained" means.
 
 use std::path::{Path, PathBuf};
 
