@@ -237,30 +237,21 @@ fn case(p: &Problem, t: &Trial) -> Result<(String, Vec<String>), CalibrateError>
 
 /// A run's predictions from the study's extraction dataset (module docs).
 fn read_back(layout: &Layout, name: &str, grades: &[String]) -> Result<DataFrame, CalibrateError> {
-    let parts = layout
-        .partitions("extraction", name)
+    let files = layout
+        .partition_files("extraction", name)
         .map_err(|e| runs_error(format!("{e:#}")))?;
     let mut frame: Option<DataFrame> = None;
-    for (first, dir, single) in parts {
-        let mut files: Vec<PathBuf> = std::fs::read_dir(&dir)
-            .map_err(|e| runs_error(format!("{}: {e}", dir.display())))?
-            .flatten()
-            .map(|e| e.path())
-            .filter(|f| f.extension().is_some_and(|x| x == "parquet"))
-            .collect();
-        files.sort();
-        for f in files {
-            let mut df = read_parquet_frame(&f)?;
-            if single {
-                let n = df.height();
-                df.with_column(Column::new("period".into(), vec![first; n]))?;
-            }
-            let df = predicted_of(df, grades)?;
-            match &mut frame {
-                None => frame = Some(df),
-                Some(all) => {
-                    all.vstack_mut(&df)?;
-                }
+    for (f, period) in files {
+        let mut df = read_parquet_frame(&f)?;
+        if let Some(period) = period {
+            let n = df.height();
+            df.with_column(Column::new("period".into(), vec![period; n]))?;
+        }
+        let df = predicted_of(df, grades)?;
+        match &mut frame {
+            None => frame = Some(df),
+            Some(all) => {
+                all.vstack_mut(&df)?;
             }
         }
     }

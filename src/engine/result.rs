@@ -85,6 +85,24 @@ pub struct Extraction {
     pub lithology: Vec<Vec<f64>>,
 }
 
+impl Extraction {
+    /// Metal of grade column `g` (Σ tonnes × grade) and the tonnes it is counted over: the
+    /// rows that drew tonnes and have a grade. Their ratio is the tonnage-weighted mean
+    /// grade (NaN when no row counts).
+    pub fn grade_metal(&self, g: usize) -> (f64, f64) {
+        let (mut metal, mut t) = (0.0, 0.0);
+        if let Some(col) = self.grades.get(g) {
+            for (i, &x) in col.iter().enumerate() {
+                if self.tonnes[i] > 0.0 && x.is_finite() {
+                    metal += self.tonnes[i] * x;
+                    t += self.tonnes[i];
+                }
+            }
+        }
+        (metal, t)
+    }
+}
+
 /// IMZ geometry rows.
 #[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct ImzTable {

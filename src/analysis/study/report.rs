@@ -143,11 +143,7 @@ fn verdict(rows: &[SummaryRow]) -> String {
 
 /// Reads a variant's `extraction` partitions back.
 fn read_drawn(layout: &Layout, variant: &str, grade: &str) -> Result<Drawn> {
-    let root = layout
-        .table_root("extraction")
-        .join(format!("scenario={variant}"));
-    let mut files = Vec::new();
-    collect_parquet(&root, None, &mut files)?;
+    let files = layout.partition_files("extraction", variant)?;
     let mut d = Drawn::default();
     for (file, period_dir) in files {
         let f = std::fs::File::open(&file).with_context(|| file.display().to_string())?;
@@ -197,28 +193,6 @@ fn read_drawn(layout: &Layout, variant: &str, grade: &str) -> Result<Drawn> {
         }
     }
     Ok(d)
-}
-
-/// The Parquet files under `dir`, each with the period of its `period=N` directory (None
-/// under `period_group=` directories, whose files hold a `period` column).
-fn collect_parquet(
-    dir: &Path,
-    period: Option<i64>,
-    out: &mut Vec<(PathBuf, Option<i64>)>,
-) -> Result<()> {
-    for e in std::fs::read_dir(dir).with_context(|| dir.display().to_string())? {
-        let path = e?.path();
-        let name = path
-            .file_name()
-            .map_or(String::new(), |n| n.to_string_lossy().into_owned());
-        if path.is_dir() {
-            let p = name.strip_prefix("period=").and_then(|v| v.parse().ok());
-            collect_parquet(&path, p.or(period), out)?;
-        } else if name.ends_with(".parquet") {
-            out.push((path, period));
-        }
-    }
-    Ok(())
 }
 
 /// Per variant, (grade–tonnage, recovery–dilution) curves, in %.

@@ -57,10 +57,15 @@ impl Layout {
         self.dir.join("summary.parquet")
     }
 
-    /// The partition directories of a variant's table, `(first period, path, whether the
-    /// directory holds one period and so no `period` column)`, in period order; none when
+    /// The Parquet files of a variant's table in period order (by partition, then by file
+    /// name), each with its period when its directory holds one period (`period=N`: the
+    /// files have no `period` column) and `None` under `period_group=` (they do); none when
     /// the variant wrote no rows of it.
-    pub fn partitions(&self, table: &str, variant: &str) -> Result<Vec<(i64, PathBuf, bool)>> {
+    pub fn partition_files(
+        &self,
+        table: &str,
+        variant: &str,
+    ) -> Result<Vec<(PathBuf, Option<i64>)>> {
         let dir = self.table_root(table).join(format!("scenario={variant}"));
         let Ok(entries) = std::fs::read_dir(&dir) else {
             return Ok(Vec::new());
@@ -73,13 +78,24 @@ impl Layout {
                 (_, Some(k)) => (k, false),
                 _ => continue,
             };
-            let first = key
+            let first: i64 = key
                 .parse()
                 .with_context(|| format!("{}: not a period partition", e.path().display()))?;
             parts.push((first, e.path(), single));
         }
         parts.sort_by_key(|p| p.0);
-        Ok(parts)
+        let mut files = Vec::new();
+        for (first, dir, single) in parts {
+            let mut in_dir: Vec<PathBuf> = std::fs::read_dir(&dir)
+                .with_context(|| dir.display().to_string())?
+                .flatten()
+                .map(|e| e.path())
+                .filter(|f| f.extension().is_some_and(|x| x == "parquet"))
+                .collect();
+            in_dir.sort();
+            files.extend(in_dir.into_iter().map(|f| (f, single.then_some(first))));
+        }
+        Ok(files)
     }
 
     /// Whether the variant is complete: its `_SUCCESS` holds its hash.

@@ -108,15 +108,7 @@ impl SummaryRow {
         let mut grades = Vec::new();
         let mut recovery = Vec::new();
         for (g, name) in b.grade_names.iter().enumerate() {
-            let (mut metal, mut t) = (0.0, 0.0);
-            if let Some(col) = e.grades.get(g) {
-                for (i, &x) in col.iter().enumerate() {
-                    if e.tonnes[i] > 0.0 && x.is_finite() {
-                        metal += e.tonnes[i] * x;
-                        t += e.tonnes[i];
-                    }
-                }
-            }
+            let (metal, t) = e.grade_metal(g);
             let in_situ: f64 = (0..b.len())
                 .filter(|&k| inside[k] && b.grades[g][k].is_finite())
                 .map(|k| insitu(k) * b.grades[g][k])

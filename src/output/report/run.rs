@@ -57,8 +57,9 @@ pub struct RunReport<'a> {
     pub moments: &'a [i64],
 }
 
-/// Per-drawpoint figures of a run, in the scene's drawpoint order.
-struct PerDrawpoint {
+/// The figures of a run the page reads, worked out once: per drawpoint in the scene's
+/// drawpoint order, and the run's mean grades and short drawpoints.
+struct Figures {
     /// Height of draw at the drawpoint's last row, m.
     hod: Vec<f64>,
     /// Air gap at the drawpoint's last row, m.
@@ -67,12 +68,17 @@ struct PerDrawpoint {
     tonnes: Vec<f64>,
     /// Dilution entry, t (NaN: never reached).
     entry: Vec<f64>,
-    /// Markers drawn per drawpoint-period that drew any (for the median).
+    /// Markers drawn per drawpoint-period that drew any, ascending (for the median).
     markers: Vec<i64>,
+    /// Tonnage-weighted mean of each grade over the run: (grade, mean).
+    grades: Vec<(String, f64)>,
+    /// The drawpoints whose credited tonnes fall short of their schedule: (name,
+    /// scheduled, credited).
+    short: Vec<(String, f64, f64)>,
 }
 
-impl PerDrawpoint {
-    fn new(scene: &Scene, run: &RunOutput) -> PerDrawpoint {
+impl Figures {
+    fn new(scene: &Scene, run: &RunOutput) -> Figures {
         let n = scene.drawpoints.len();
         let e = &run.extraction;
         let (mut hod, mut air_gap, mut tonnes) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
@@ -91,12 +97,14 @@ impl PerDrawpoint {
             }
         }
         markers.sort_unstable();
-        PerDrawpoint {
+        Figures {
             hod,
             air_gap,
             tonnes,
             entry: dilution_entries(run, n),
             markers,
+            grades: mean_grades(scene, run),
+            short: per_short(scene, run),
         }
     }
 
@@ -121,7 +129,7 @@ pub fn write_run_report(dir: &Path, r: &RunReport) -> Result<PathBuf, ReportErro
         path: charts.clone(),
         source,
     })?;
-    let per = PerDrawpoint::new(scene, run);
+    let per = Figures::new(scene, run);
     let mut page = Page::new(
         &format!("caveflow run: {}", r.name),
         &[
@@ -180,7 +188,7 @@ pub fn write_run_report(dir: &Path, r: &RunReport) -> Result<PathBuf, ReportErro
     sections(&mut page, r)?;
 
     page.heading("Mass balance");
-    mass_balance(&mut page, &charts, scene, run)?;
+    mass_balance(&mut page, &charts, run, &per)?;
 
     page.heading("Resolution");
     resolution(&mut page, scene, run, &per);
@@ -214,7 +222,7 @@ pub fn write_run_report(dir: &Path, r: &RunReport) -> Result<PathBuf, ReportErro
 }
 
 /// The verdict in two sentences.
-fn verdict(scene: &Scene, run: &RunOutput, per: &PerDrawpoint) -> String {
+fn verdict(scene: &Scene, run: &RunOutput, per: &Figures) -> String {
     let b = &run.balance;
     let share = 100.0 * b.credited_tonnes / b.scheduled_tonnes.max(f64::MIN_POSITIVE);
     let mut s = format!(
@@ -222,14 +230,15 @@ fn verdict(scene: &Scene, run: &RunOutput, per: &PerDrawpoint) -> String {
         fmt_mass(b.credited_tonnes),
         fmt_mass(b.scheduled_tonnes)
     );
-    let grades: Vec<String> = mean_grades(scene, run)
-        .into_iter()
-        .map(|(g, v)| format!("{g} {}", num(v)))
+    let grades: Vec<String> = per
+        .grades
+        .iter()
+        .map(|(g, v)| format!("{g} {}", num(*v)))
         .collect();
     if !grades.is_empty() {
         s.push_str(&format!(" at a mean grade of {}", grades.join(", ")));
     }
-    let short = per_short(scene, run).len();
+    let short = per.short.len();
     if short > 0 {
         s.push_str(&format!(
             "; {short} of {} drawpoints fell short of material",
@@ -255,20 +264,10 @@ fn verdict(scene: &Scene, run: &RunOutput, per: &PerDrawpoint) -> String {
 /// Tonnage-weighted mean of each grade column over the run.
 fn mean_grades(scene: &Scene, run: &RunOutput) -> Vec<(String, f64)> {
     let e = &run.extraction;
-    scene
-        .blocks
-        .grade_names
-        .iter()
-        .zip(&e.grades)
-        .map(|(name, col)| {
-            let (mut metal, mut t) = (0.0, 0.0);
-            for (i, &g) in col.iter().enumerate() {
-                if g.is_finite() && e.tonnes[i] > 0.0 {
-                    metal += g * e.tonnes[i];
-                    t += e.tonnes[i];
-                }
-            }
-            (name.clone(), metal / t)
+    (0..e.grades.len())
+        .map(|g| {
+            let (metal, t) = e.grade_metal(g);
+            (scene.blocks.grade_names[g].clone(), metal / t)
         })
         .collect()
 }
@@ -286,24 +285,20 @@ fn per_short(scene: &Scene, run: &RunOutput) -> Vec<(String, f64, f64)> {
 }
 
 /// The key figures.
-fn cards(scene: &Scene, run: &RunOutput, per: &PerDrawpoint) -> Vec<(String, String)> {
+fn cards(scene: &Scene, run: &RunOutput, per: &Figures) -> Vec<(String, String)> {
     let b = &run.balance;
     let mut c = vec![
         (fmt_mass(b.credited_tonnes), "drawn".to_string()),
         (fmt_mass(b.scheduled_tonnes), "scheduled".to_string()),
     ];
-    for (g, v) in mean_grades(scene, run) {
-        c.push((num(v), format!("mean {g}")));
+    for (g, v) in &per.grades {
+        c.push((num(*v), format!("mean {g}")));
     }
     if let (1.., mean) = per.mean_entry() {
         c.push((fmt_mass(mean), "mean dilution entry".into()));
     }
     c.push((
-        format!(
-            "{} / {}",
-            per_short(scene, run).len(),
-            scene.drawpoints.len()
-        ),
+        format!("{} / {}", per.short.len(), scene.drawpoints.len()),
         "drawpoints short".into(),
     ));
     c.push((
@@ -329,11 +324,7 @@ fn of_kind(charts: &[PathBuf], keep: impl Fn(&str) -> bool) -> Vec<&Path> {
 }
 
 /// Draws the plan maps; returns their files.
-fn plan_maps(
-    charts: &Path,
-    scene: &Scene,
-    per: &PerDrawpoint,
-) -> Result<Vec<PathBuf>, ReportError> {
+fn plan_maps(charts: &Path, scene: &Scene, per: &Figures) -> Result<Vec<PathBuf>, ReportError> {
     let dp = &scene.drawpoints;
     let points = |values: &[f64]| -> Vec<MapPoint> {
         (0..dp.len())
@@ -375,6 +366,7 @@ fn plan_maps(
 /// The sections at each moment, one row of images per drawpoint row.
 fn sections(page: &mut Page, r: &RunReport) -> Result<(), ReportError> {
     let last = r.scene.periods.id.last().copied();
+    let total: f64 = r.scene.schedule.tonnes.iter().sum();
     let shown: Vec<String> = r
         .moments
         .iter()
@@ -383,7 +375,6 @@ fn sections(page: &mut Page, r: &RunReport) -> Result<(), ReportError> {
                 .filter(|&k| r.scene.periods.id[k] <= *p)
                 .map(|k| r.scene.schedule.period(k).iter().sum::<f64>())
                 .sum();
-            let total: f64 = r.scene.schedule.tonnes.iter().sum();
             format!("{p} ({:.0}% of the scheduled tonnes)", 100.0 * cum / total)
         })
         .collect();
@@ -424,8 +415,8 @@ fn sections(page: &mut Page, r: &RunReport) -> Result<(), ReportError> {
 fn mass_balance(
     page: &mut Page,
     charts: &Path,
-    scene: &Scene,
     run: &RunOutput,
+    per: &Figures,
 ) -> Result<(), ReportError> {
     let e = &run.extraction;
     let c = &run.balance.correction;
@@ -466,12 +457,12 @@ fn mass_balance(
         ],
     )?;
     page.charts(&[&hist])?;
-    let short = per_short(scene, run);
-    if !short.is_empty() {
+    if !per.short.is_empty() {
         page.note(
             "Drawpoints short of material (extraction.status and short_reason give each period):",
         );
-        let rows: Vec<Vec<String>> = short
+        let rows: Vec<Vec<String>> = per
+            .short
             .iter()
             .map(|(name, s, c)| {
                 vec![
@@ -491,7 +482,7 @@ fn mass_balance(
 }
 
 /// The resolution used and what the speed–accuracy rule says of it.
-fn resolution(page: &mut Page, scene: &Scene, run: &RunOutput, per: &PerDrawpoint) {
+fn resolution(page: &mut Page, scene: &Scene, run: &RunOutput, per: &Figures) {
     let res = &run.resolution;
     let b = &run.balance;
     let rows = [
