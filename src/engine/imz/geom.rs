@@ -57,7 +57,10 @@ pub struct ImzGrid {
 }
 
 impl ImzGrid {
-    /// Builds the grid for the IMZs `which` (indices into `geoms`).
+    /// Builds the grid for the IMZs `which` (indices into `geoms`): each is listed, in the
+    /// order of `which`, in the cells its widest disk meets (not its bounding square's: at
+    /// cells a quarter of R wide that is about a fifth fewer entries for the marker pass and
+    /// the perimeter sampling to reject, whatever the IMZs' order).
     pub fn build(
         geoms: &[ImzGeom],
         which: &[usize],
@@ -70,28 +73,28 @@ impl ImzGrid {
             ((extent[1] / cell).ceil() as usize).max(1),
         ];
         let mut counts = vec![0u32; n[0] * n[1] + 1];
-        let ranges: Vec<_> = which
-            .iter()
-            .map(|&d| {
-                let g = &geoms[d];
-                let r = g.max_radius();
-                let lo = |c: f64, o: f64, m: usize| {
-                    (((c - r - o) / cell).floor().max(0.0) as usize).min(m - 1)
-                };
-                let hi = |c: f64, o: f64, m: usize| {
-                    (((c + r - o) / cell).floor().max(0.0) as usize).min(m - 1)
-                };
-                (
-                    d,
-                    lo(g.x, origin[0], n[0]),
-                    hi(g.x, origin[0], n[0]),
-                    lo(g.y, origin[1], n[1]),
-                    hi(g.y, origin[1], n[1]),
-                )
-            })
-            .collect();
-        for &(_, i0, i1, j0, j1) in &ranges {
-            for j in j0..=j1 {
+        // Per IMZ, the cells its widest disk meets, row by row: (IMZ, row, first and last
+        // column). A row's columns are those the circle's chord at the row's nearest edge
+        // spans (a hair wider than R, so that a point `ImzGeom::disk_at` takes inside on
+        // rounding is never in an unlisted cell).
+        let index =
+            |c: f64, o: f64, m: usize| (((c - o) / cell).floor().max(0.0) as usize).min(m - 1);
+        let mut rows: Vec<(u32, usize, usize, usize)> = Vec::new();
+        for &d in which {
+            let g = &geoms[d];
+            let r = g.max_radius() * (1.0 + 1e-9) + 1e-9 * cell;
+            for j in index(g.y - r, origin[1], n[1])..=index(g.y + r, origin[1], n[1]) {
+                let (y0, y1) = (
+                    origin[1] + j as f64 * cell,
+                    origin[1] + (j + 1) as f64 * cell,
+                );
+                let dy = (y0 - g.y).max(g.y - y1).max(0.0);
+                let half = (r * r - dy * dy).max(0.0).sqrt();
+                let (i0, i1) = (
+                    index(g.x - half, origin[0], n[0]),
+                    index(g.x + half, origin[0], n[0]),
+                );
+                rows.push((d as u32, j, i0, i1));
                 for i in i0..=i1 {
                     counts[i + n[0] * j + 1] += 1;
                 }
@@ -102,13 +105,11 @@ impl ImzGrid {
         }
         let mut fill = counts.clone();
         let mut ids = vec![0u32; *counts.last().unwrap() as usize];
-        for &(d, i0, i1, j0, j1) in &ranges {
-            for j in j0..=j1 {
-                for i in i0..=i1 {
-                    let c = i + n[0] * j;
-                    ids[fill[c] as usize] = d as u32;
-                    fill[c] += 1;
-                }
+        for &(d, j, i0, i1) in &rows {
+            for i in i0..=i1 {
+                let c = i + n[0] * j;
+                ids[fill[c] as usize] = d;
+                fill[c] += 1;
             }
         }
         ImzGrid {
@@ -134,5 +135,97 @@ impl ImzGrid {
         }
         let c = i + self.n[0] * j;
         &self.ids[self.start[c] as usize..self.start[c + 1] as usize]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{Rng, SeedableRng};
+
+    /// Every IMZ whose disk holds a point is listed at the point's cell, in the order of
+    /// `which` (the marker pass sums the IMZs' moves in that order), and the listing by the
+    /// widest disk's circle skips cells that its bounding square would list: 60 random IMZs
+    /// (radii up to 30 m, some leaving the grid) over a 200 m square in 5 m and 15 m cells,
+    /// 40 000 random points, several right on a disk's rim.
+    #[test]
+    fn the_grid_lists_every_imz_that_holds_a_point_and_only_near_ones() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+        let geoms: Vec<ImzGeom> = (0..60)
+            .map(|_| ImzGeom {
+                x: rng.random_range(-10.0..210.0),
+                y: rng.random_range(-10.0..210.0),
+                z0: rng.random_range(0.0..8.0),
+                h: 4.0,
+                radius: (0..12)
+                    .map(|i| rng.random_range(0.0..2.5) * (1 + i) as f64)
+                    .collect(),
+            })
+            .collect();
+        let which: Vec<usize> = (0..geoms.len()).rev().step_by(2).collect();
+        // The circle's share of its square tends to π/4 as the cells shrink: here 0.84 of the
+        // square's cells are listed at 5 m and 0.90 at 15 m.
+        for (cell, share) in [(5.0, 0.86), (15.0, 0.92)] {
+            let grid = ImzGrid::build(&geoms, &which, [0.0, 0.0], [200.0, 200.0], cell);
+            for k in 0..40_000 {
+                let p = if k % 4 == 0 {
+                    // On the rim of a disk (to rounding).
+                    let g = &geoms[which[k % which.len()]];
+                    let i = k % g.radius.len();
+                    let t: f64 = rng.random_range(0.0..std::f64::consts::TAU);
+                    let r = g.radius[i];
+                    [
+                        g.x + r * t.cos(),
+                        g.y + r * t.sin(),
+                        g.z0 + (i as f64 + 0.5) * g.h,
+                    ]
+                } else {
+                    [
+                        rng.random_range(0.0..200.0),
+                        rng.random_range(0.0..200.0),
+                        rng.random_range(0.0..56.0),
+                    ]
+                };
+                if !(0.0..200.0).contains(&p[0]) || !(0.0..200.0).contains(&p[1]) {
+                    continue;
+                }
+                let listed = grid.at(p[0], p[1]);
+                let pos = |d: usize| listed.iter().position(|&e| e as usize == d);
+                let holding: Vec<usize> = which
+                    .iter()
+                    .copied()
+                    .filter(|&d| geoms[d].disk_at(p).is_some())
+                    .collect();
+                for &d in &holding {
+                    assert!(
+                        pos(d).is_some(),
+                        "cell {cell}: IMZ {d} holds {p:?}, not listed"
+                    );
+                }
+                for w in holding.windows(2) {
+                    assert!(pos(w[0]) < pos(w[1]), "cell {cell}: order at {p:?}");
+                }
+            }
+            // The listing against the bounding squares'.
+            let listed: usize = which
+                .iter()
+                .map(|&d| {
+                    let g = &geoms[d];
+                    let r = g.max_radius();
+                    let last = (200.0 / cell).ceil() - 1.0;
+                    let span = |c: f64| {
+                        let lo = ((c - r) / cell).floor().clamp(0.0, last);
+                        let hi = ((c + r) / cell).floor().clamp(0.0, last);
+                        (hi - lo + 1.0) as usize
+                    };
+                    span(g.x) * span(g.y)
+                })
+                .sum();
+            assert!(
+                (grid.ids.len() as f64) < share * listed as f64,
+                "cell {cell}: {} of {listed}",
+                grid.ids.len()
+            );
+        }
     }
 }
