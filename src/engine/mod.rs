@@ -772,10 +772,9 @@ impl<'a> Engine<'a> {
                         continue;
                     }
                     let zb = g.z0 + i as f64 * g.h;
-                    next.push((i, lat.next_site_a2(g.x, g.y, zb, zb + g.h, r)));
-                    let (Some(kr), Some(jr)) =
-                        (lat.range(2, zb, zb + g.h), lat.range(1, g.y - r, g.y + r))
-                    else {
+                    let layers = lat.layers_at_level(zb, zb + g.h, |z| g.level(z), i);
+                    next.push((i, lat.next_site_a2(g.x, g.y, layers, r)));
+                    let (Some(kr), Some(jr)) = (layers, lat.range(1, g.y - r, g.y + r)) else {
                         continue;
                     };
                     for k in kr.0..=kr.1 {

@@ -254,6 +254,53 @@ fn sheet_drop(b: &UniformBox, lat: &Lattice, e: &Engine, layer: usize) -> f64 {
         .sum()
 }
 
+/// Lattice layers on disk boundaries: the drawpoint lies level with the lattice's origin,
+/// so at h = s/2 every layer of sites lies exactly on a disk base, and at h = 1.5 s every
+/// third. Each such site belongs to the disk `ImzGeom::disk_at` puts it in and is engulfed
+/// by that disk's growth, so after the draw every site inside the IMZ is a marker (moving
+/// or drawn). Before, a site on a boundary could fall in neither disk's range of layers
+/// and was never engulfed: 932 of the 13 708 sites inside the IMZ here at h = s/2 and 488
+/// at 1.5 s, and an isolated demo drawpoint delivered 0.59 (h = s/2) and 0.93 (1.5 s) of
+/// its schedule in markers (0.985 and 1.002 now). At 1.5 s the markers drawn weigh the
+/// schedule to 2%, as in isolated draw (~3600 markers of 3.3 g; 0.987 measured). Disks
+/// thinner than the spacing are another matter: at h = s/2 the drawn markers weigh 0.946
+/// of the schedule with every site engulfed, which is not explained yet, so no tolerance
+/// is claimed for them.
+#[test]
+fn lattice_layers_on_disk_boundaries_are_engulfed() {
+    let (b, scene) = capped_box(0.5, None);
+    let lat = Lattice::new(&scene.blocks, S);
+    for h in [0.5 * S, 1.5 * S] {
+        let sc = scenario(h, S, 0.0002);
+        let e = draw_all(&scene, &sc);
+        let g = &e.imzs[0].geom;
+        let mut marker = vec![false; lat.len()];
+        for &id in e.markers.id.iter().chain(&e.drawn.m.id) {
+            marker[id as usize] = true;
+        }
+        let inside: Vec<usize> = (0..lat.len())
+            .filter(|&id| g.disk_at(lat.pos(id)).is_some())
+            .collect();
+        let on_base = inside
+            .iter()
+            .filter(|&&id| g.height(lat.pos(id)[2]).fract() == 0.0)
+            .count();
+        let missed = inside.iter().filter(|&&id| !marker[id]).count();
+        let drawn: f64 = e.drawn.m.mass.iter().sum();
+        let ratio = drawn / (b.periods as f64 * b.tonnes);
+        eprintln!(
+            "h {h}: {} sites inside the IMZ ({on_base} on a disk base), {missed} not engulfed; \
+             drawn markers {ratio:.4} of the schedule",
+            inside.len()
+        );
+        assert!(on_base > 0, "h {h}: no layer lies on a disk base");
+        assert_eq!(missed, 0, "h {h}: sites inside the IMZ never engulfed");
+        if h > S {
+            assert!((ratio - 1.0).abs() <= 0.02, "h {h}: {ratio}");
+        }
+    }
+}
+
 /// A broken-through isolated IMZ: a 0.5 m column drawn to about four times its
 /// breakthrough draw, no rilling. Void that leaves the top disk moves the top disk's
 /// markers, so the crater the surface markers make is the void vented through the IMZ's

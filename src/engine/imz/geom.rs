@@ -21,6 +21,22 @@ impl ImzGeom {
     pub fn max_radius(&self) -> f64 {
         self.radius.iter().cloned().fold(0.0, f64::max)
     }
+    /// Height `z` in disk units above the IMZ's base, (z − z0) / h: disk i holds
+    /// i ≤ t < i + 1. Every test of which disk a point or a lattice site lies in reads
+    /// this, so that one on a disk boundary lies in exactly one disk.
+    #[inline]
+    pub fn height(&self, z: f64) -> f64 {
+        (z - self.z0) / self.h
+    }
+
+    /// The disk level that holds height `z` (whatever its radius), if z is not below the
+    /// base: ⌊[`height`](Self::height)⌋.
+    #[inline]
+    pub fn level(&self, z: f64) -> Option<usize> {
+        let t = self.height(z);
+        (t >= 0.0).then_some(t as usize)
+    }
+
     /// Whether a point lies inside this IMZ.
     #[inline]
     pub fn contains(&self, p: [f64; 3]) -> bool {
@@ -32,7 +48,7 @@ impl ImzGeom {
     /// axis with the squared distance dx² + dy².
     #[inline]
     pub fn disk_at(&self, p: [f64; 3]) -> Option<(usize, f64, [f64; 2], f64)> {
-        let t = (p[2] - self.z0) / self.h;
+        let t = self.height(p[2]);
         if !(t >= 0.0) {
             return None;
         }
