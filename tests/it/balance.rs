@@ -261,11 +261,12 @@ fn sheet_drop(b: &UniformBox, lat: &Lattice, e: &Engine, layer: usize) -> f64 {
 /// or drawn). Before, a site on a boundary could fall in neither disk's range of layers
 /// and was never engulfed: 932 of the 13 708 sites inside the IMZ here at h = s/2 and 488
 /// at 1.5 s, and an isolated demo drawpoint delivered 0.59 (h = s/2) and 0.93 (1.5 s) of
-/// its schedule in markers (0.985 and 1.002 now). At 1.5 s the markers drawn weigh the
-/// schedule to 2%, as in isolated draw (~3600 markers of 3.3 g; 0.987 measured). Disks
-/// thinner than the spacing are another matter: at h = s/2 the drawn markers weigh 0.946
-/// of the schedule with every site engulfed, which is not explained yet, so no tolerance
-/// is claimed for them.
+/// its schedule in markers (1.000 and 1.002 now). At 1.5 s the markers drawn weigh the
+/// schedule to 2%, as in isolated draw (~3600 markers of 3.3 g; 0.987 measured). At
+/// h = s/2 they weigh 0.953, and less with smaller increments (0.897 at a quarter of
+/// this one), while at 0.45 s and 0.55 s, with few sites on a base, they weigh 0.98 and
+/// 1.00 at a quarter: markers that start exactly on a disk base still lose volume
+/// somewhere, not found yet, so no tolerance is claimed at h = s/2.
 #[test]
 fn lattice_layers_on_disk_boundaries_are_engulfed() {
     let (b, scene) = capped_box(0.5, None);

@@ -343,10 +343,12 @@ fn drawn_origin(out: &RunOutput) -> (f64, usize) {
 /// The increment thresholds, measured: 50 kg of Castro isolated draw (a 0.6 × 0.6 × 2 m
 /// column, h = 25 mm, markers 12.5 mm) in one period, at increments of 0.3 to 120 opening
 /// disks. Against 0.3 disks, the mean origin elevation of the drawn material (printed):
-/// 1 disk 0.0%, 4 disks −1.8%, 15 −8.7%, 40 −15%, 120 −24%; the markers drawn fall to
-/// about half from 15–40 disks on (the correction factor then nears its bound of 2).
-/// Checked with margins: within 1% up to 1 disk and 3% at 4 (valid), more than 10% low at
-/// 40 (refused).
+/// 1 disk −0.1%, 4 disks −0.9%, 15 −2.6%, 40 −4.3%, 120 −6.6%, with up to 6% fewer
+/// markers drawn. When a marker that crossed several disk bases in one step took only
+/// the first base's transfer, it was −1.8% at 4 disks, −8.7% at 15, −15% at 40 and −24% at
+/// 120, and the markers drawn fell to about half from 15–40 disks on. Checked with
+/// margins: within 1% up to 1 disk and 3% at 4 (valid), more than 3% low at 40 and lower
+/// still at 120 (the trend the degraded and refused regions stand on).
 #[test]
 fn increment_changes_where_material_comes_from() {
     let disk = opening_disk(W, H, N1);
@@ -367,7 +369,7 @@ fn increment_changes_where_material_comes_from() {
     };
     let (z0, n0) = run_at(0.3);
     let mut dev = Vec::new();
-    for inc in [1.0, 4.0, 15.0, 40.0] {
+    for inc in [1.0, 4.0, 15.0, 40.0, 120.0] {
         let (z, n) = run_at(inc);
         let d = z / z0 - 1.0;
         eprintln!(
@@ -378,16 +380,23 @@ fn increment_changes_where_material_comes_from() {
     }
     assert!(dev[0].abs() <= 0.01, "1 disk: {dev:?}");
     assert!(dev[1].abs() <= 0.03, "4 disks: {dev:?}");
-    assert!(dev[3] < -0.10, "40 disks: {dev:?}");
+    assert!(
+        dev[3] < -0.03 && dev[4] < dev[3],
+        "40 and 120 disks: {dev:?}"
+    );
 }
 
 /// The thin-disk threshold, measured: 18 kg of Castro isolated draw (a 0.6 × 0.6 × 1.5 m
 /// column, markers 12.5 mm, 0.4 kg increments) at disk thicknesses h = 0.3–6 d̄. Against
-/// h = 3 d̄, the drawn material's mean origin elevation (printed) moves little down to
-/// h = d̄ and is clearly low below it, where fewer markers are drawn for the same tonnes.
-/// Checked: within 2% at h/d̄ = 1 and 6 (valid), more than 5% low at 0.3 (degraded).
+/// h = 3 d̄, the drawn material's mean origin elevation (printed) is −1.1% at 0.3 d̄,
+/// −2.3% at 0.6, −0.9% at d̄ and −1.4% at 6 d̄: disks thinner than a fragment hardly
+/// shift the draw. It was −8.4% at 0.3 d̄ and −4.4% at 0.6, with a quarter fewer markers
+/// drawn, while a marker that crossed several disk bases in one step (as the thin disks
+/// make it do) took only the first base's transfer: the shift was that, not the disks.
+/// Checked: within 3% at every thickness (the origins of ~5400 markers, which scatter by
+/// 1–2% between these runs).
 #[test]
-fn disks_thinner_than_a_fragment_shift_the_draw() {
+fn disks_thinner_than_a_fragment_hardly_shift_the_draw() {
     let run_at = |ratio: f64| {
         let b = UniformBox {
             extent: [0.6, 0.6, 1.5],
@@ -414,6 +423,5 @@ fn disks_thinner_than_a_fragment_shift_the_draw() {
         );
         dev.push(d);
     }
-    assert!(dev[2].abs() <= 0.02 && dev[3].abs() <= 0.02, "{dev:?}");
-    assert!(dev[0] < -0.05, "h/d̄ = 0.3: {dev:?}");
+    assert!(dev.iter().all(|d| d.abs() <= 0.03), "{dev:?}");
 }

@@ -470,22 +470,32 @@ impl MotionField<'_> {
         }
         // Transfer into the disk below (Δa′, Δz′), along each IMZ's streamtube, for every
         // disk base the summed move crosses, by the depth the summed move reaches below it.
+        // A move that reaches below the next base down crosses that one too (a step near a
+        // narrow opening, or disks thinner than the move): the transfer is applied base by
+        // base, each from the radius and depth the one above left.
         let z_new = p[2] + st.dz;
         for &(d, i, a, ux, uy, dz) in bases[..n_b].iter().chain(&extra) {
             let g = &self.geoms[d as usize];
-            let z_base = g.z0 + i as f64 * g.h;
-            if z_new >= z_base {
-                continue;
-            }
             let motion = self.motion[d as usize];
-            let (m, below) = (&motion[i as usize], &motion[i as usize - 1]);
-            if below.r > 0.0 && (below.r != m.r || below.w != m.w) {
-                let (da_t, dz_t) = transfer(m, below, a, z_base - z_new);
-                let share = dz.abs() / total;
-                st.dx += share * da_t * ux;
-                st.dy += share * da_t * uy;
-                st.dz += share * dz_t;
+            let (mut i, mut a, mut z) = (i as usize, a, z_new);
+            let (mut da, mut dz_t) = (0.0, 0.0);
+            while i > 0 {
+                let z_base = g.z0 + i as f64 * g.h;
+                if z >= z_base {
+                    break;
+                }
+                let (m, below) = (&motion[i], &motion[i - 1]);
+                if below.r > 0.0 && (below.r != m.r || below.w != m.w) {
+                    let (da_i, dz_i) = transfer(m, below, a, z_base - z);
+                    (a, z) = ((a + da_i).max(0.0), z + dz_i);
+                    (da, dz_t) = (da + da_i, dz_t + dz_i);
+                }
+                i -= 1;
             }
+            let share = dz.abs() / total;
+            st.dx += share * da * ux;
+            st.dy += share * da * uy;
+            st.dz += share * dz_t;
         }
         st.host = st.drawn_by;
         if st.drawn_by != u32::MAX && p[2] + st.dz >= self.geoms[st.drawn_by as usize].z0 {
