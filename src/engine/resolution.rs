@@ -39,13 +39,13 @@
 //! median distance between neighbouring drawpoints (an IMZ must hold enough markers across
 //! to be sampled), and no finer than [`FRAG_FRACTION`] × d̄ (markers closer than fragments
 //! stand for no more material than one fragment). h stays the scene default (h/2 costs
-//! twice the time and moved the whole-run grade error from 1.56% to 1.49%) but never
+//! 2.6 times the time and moves the whole-run grade error from 1.58% to 1.38%) but never
 //! thinner than d̄ (h/d̄ ≥ 1, `stability`). The increment follows the spacing: the opening
 //! disk's tonnes times the spacing over 0.5 h when coarser than 0.5 h (a marker then moves
 //! about as many spacings per update as at the demo's default), one disk when finer (at the
-//! default spacing, increment × 4 adds 0.5 points to the whole-run error and saves a fifth
-//! of the time). Each step is monotone in T, so a tighter target never gives a coarser
-//! resolution.
+//! default spacing, increment × 4 adds 0.5 points to the whole-run error and saves a
+//! seventh of the time). Each step is monotone in T, so a tighter target never gives a
+//! coarser resolution.
 //!
 //! The constants are fitted on the demo; another scene's error at the same multiples
 //! differs as its grade variability and its tonnes per drawpoint-period do. Run
@@ -54,17 +54,19 @@
 use crate::engine::ResolvedResolution;
 use crate::model::{Scenario, Scene};
 
-/// Grade RMSE of the scene default against the reference over the whole demo draw: 1.56%
-/// (`docs::performance`, "Speed and accuracy"; the reference's own error is estimated at about 1%).
-pub const E_DEFAULT: f64 = 0.0156;
+/// Grade RMSE of the scene default against the reference over the whole demo draw: 1.58%
+/// (`docs::performance`, "Speed and accuracy"; the reference's own error is estimated at
+/// about 1%).
+pub const E_DEFAULT: f64 = 0.0158;
 
 /// Exponent of the grade RMSE in the marker-spacing multiple: the least-squares slope (in
 /// logs) of the whole-demo sweep's runs at h and increment × 1 and spacing × 2, 1.41, 1 and
-/// 0.71, whose errors were 3.62, 2.56, 1.56 and 1.05% (`docs::performance`). Sampling alone would give
-/// 1.5; the measured distances fall more slowly because the reference's own noise is in
-/// them (at spacing × 0.5, the reference's spacing, the distance is still 0.92%), which
-/// makes the rule choose finer markers than sampling alone would, never coarser.
-pub const SPACING_EXPONENT: f64 = 1.22;
+/// 0.71, whose errors are 3.88, 2.55, 1.58 and 1.04% (`docs::performance`). Sampling alone
+/// would give 1.5; the measured distances fall more slowly because the reference's own
+/// noise is in them (at spacing × 0.5, the reference's spacing, the distance is still
+/// 0.92%), which makes the rule choose finer markers than sampling alone would, never
+/// coarser.
+pub const SPACING_EXPONENT: f64 = 1.29;
 
 /// Bounds of the spacing multiple the target can choose: the sweep measured 0.5–4; a quarter
 /// of the default is 64× the markers (hours at mine scale), and 4× is as coarse as the

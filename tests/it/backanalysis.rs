@@ -99,7 +99,7 @@ fn fit(
 /// scatters one run's Urad RMSE (the model's own noise, 0.0083% Mo, against 0.0123% of
 /// records' noise). So the Urad RMSE "after" is read as the median over the runs within
 /// 2 SE of the fit (the fitted run among them), must be at least 10% below the stated
-/// fragmentation's, and within twice the noise. Measured: 0.0213% → 0.0146%.
+/// fragmentation's, and within twice the noise. Measured: 0.0219% → 0.0148%.
 #[test]
 fn calibrate_recovers_the_hidden_fragment_factor_and_cuts_rmse() {
     let (scene, sc) = reduced();
@@ -345,9 +345,9 @@ fn assert_recovers(report: &CalibrationReport, truth: &Calibration) {
 }
 
 /// Three zones moved at once, records from a run at the fit's own resolution (5% noise,
-/// seed 7). Measured: Urad 0.751 ± 0.012 (truth 0.75), Primos 1.271 ± 0.039 (1.3),
-/// contact 1.009 ± 0.023 (1); overall RMSE 0.0187% → 0.0145% against 0.0124% of noise;
-/// 39 runs.
+/// seed 7). Measured: Urad 0.763 ± 0.015 (truth 0.75), Primos 1.272 ± 0.025 (1.3),
+/// contact 1.034 ± 0.028 (1); overall RMSE 0.0190% → 0.0146%, the records' noise
+/// estimated at 0.0122%; 38 runs.
 #[test]
 fn calibrate_recovers_three_zones_moved_at_once() {
     let (scene, sc) = reduced();
@@ -360,9 +360,9 @@ fn calibrate_recovers_three_zones_moved_at_once() {
 
 /// The same truth, records from a run at half the fit's marker spacing (8 times the
 /// markers): the fit must absorb what its own resolution gets wrong, and its SE must say
-/// how much. Measured: Urad 0.770 ± 0.029, Primos 1.355 ± 0.041, contact 1.050 ± 0.034
-/// (of which the resolution check's shift 0.022, 0.029 and 0.005); overall RMSE 0.0175% →
-/// 0.0154%; 46 runs.
+/// how much. Measured: Urad 0.771 ± 0.029, Primos 1.335 ± 0.036, contact 1.055 ± 0.033
+/// (of which the resolution check's shift 0.024, 0.028 and 0.023); overall RMSE 0.0175% →
+/// 0.0153%; 46 runs.
 #[test]
 fn calibrate_recovers_three_zones_from_records_of_a_finer_run() {
     let (scene, sc) = reduced();

@@ -265,8 +265,9 @@ fn sheet_drop(b: &UniformBox, lat: &Lattice, e: &Engine, layer: usize) -> f64 {
 /// schedule to 2%, as in isolated draw (~3600 markers of 3.3 g; 0.987 measured). At
 /// h = s/2 they weigh 0.953, and less with smaller increments (0.897 at a quarter of
 /// this one), while at 0.45 s and 0.55 s, with few sites on a base, they weigh 0.98 and
-/// 1.00 at a quarter: markers that start exactly on a disk base still lose volume
-/// somewhere, not found yet, so no tolerance is claimed at h = s/2.
+/// 1.00 at a quarter: markers that start exactly on a disk base still lose volume, where
+/// they are engulfed in the IMZ's upper part (`docs::validation`), not fixed yet, so no
+/// tolerance is claimed at h = s/2.
 #[test]
 fn lattice_layers_on_disk_boundaries_are_engulfed() {
     let (b, scene) = capped_box(0.5, None);

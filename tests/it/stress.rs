@@ -91,8 +91,8 @@ fn chart_dir(name: &str) -> (Option<tempfile::TempDir>, PathBuf) {
 /// flagged for potential stress-driven flow than IN-T4 (740 mm).
 ///
 /// Measured (h = 50 mm, 25 mm stress grid): IN-T4 largest pillar ratio 1.000 (fully plastic
-/// pillars, at yield), 30 levels flagged, mean stagnant ratio 0.859; IN-T5 2.171, 60 levels,
-/// 1.103. The assertions are the summary's qualitative claims, strict inequalities with no
+/// pillars, at yield), 2 levels flagged, mean stagnant ratio 0.822; IN-T5 5.046, 44 levels,
+/// 1.148. The assertions are the summary's qualitative claims, strict inequalities with no
 /// tuned margin, so a change in IMZ shape from the flow engine moves the numbers without
 /// failing the test unless it reverses the finding. The per-level force balance is exact by
 /// construction (the redistribution is imposed on the raster it is checked on): 1e-9
