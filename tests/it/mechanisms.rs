@@ -434,10 +434,10 @@ fn third(rows: &[PanelPeriod], i: usize, f: impl Fn(&PanelPeriod) -> f64) -> f64
 /// migration the cumulative waste tonnes lead the run without it in every period once waste
 /// reports (25 t against none in month 16, 1 063 t against 460 t in month 18, 27 572 t
 /// against 26 198 t at the end), and the cumulative grade from waste entry is lower in
-/// every period once the lead is a thousandth of the tonnes (by 0.0005–0.0022 % Mo). In
-/// the month waste enters, a few tonnes of it cannot move the grade by more than ~0.0002 %
-/// Mo, the size of the difference in the ore the two runs draw, so that month need not be
-/// compared.
+/// every period once the lead is a thousandth of the tonnes (by 0.0005–0.0022 % Mo; here
+/// from the month waste enters). The grades are compared from that month on: a smaller
+/// lead cannot move the grade by more than ~0.0002 % Mo, the size of the difference in the
+/// ore the two runs draw.
 #[test]
 fn demo_fragment_size_falls_and_fines_bring_waste_and_the_grade_drop_earlier() {
     let (scene, mut sc) = demo_subset(&[0, 1, 8, 9, 16, 17, 24, 25]);
