@@ -183,7 +183,8 @@ impl<'a> Engine<'a> {
     pub fn with_plan(scene: &'a Scene, scenario: &'a Scenario, plan: RunPlan) -> Engine<'a> {
         let bm = &scene.blocks;
         let res = plan.resolution();
-        let lattice = Lattice::new(bm, res.marker_spacing);
+        let lattice = Lattice::new(bm, res.marker_spacing)
+            .with_offset(bm, scenario.resolution.lattice_offset);
         let unit_mass = lattice.unit_masses(bm);
         let max = bm.max_corner();
         let diag = ((max[0] - bm.origin[0]).powi(2) + (max[1] - bm.origin[1]).powi(2)).sqrt();

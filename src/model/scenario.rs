@@ -76,6 +76,11 @@ pub struct Resolution {
     /// (`engine::resolution::resolve`): a tighter target gives a finer resolution, never a
     /// coarser one. Unset: the scene defaults above.
     pub target_grade_rmse: Option<f64>,
+    /// Plan offset (x, y) of the marker lattice, as fractions of the spacing, each in
+    /// [−0.5, 0.5). Another offset samples the same ground with other sites: it is as good
+    /// a run, and the spread of the results between offsets is the markers' sampling noise
+    /// (`docs::performance`, "Sampling noise"). Default: none.
+    pub lattice_offset: [f64; 2],
 }
 
 /// IMZ growth and marker-motion parameters (summary §3.3).
@@ -695,6 +700,16 @@ impl Scenario {
             }
         }
         pos("resolution.target_grade_rmse", res.target_grade_rmse)?;
+        if let Some(x) = res
+            .lattice_offset
+            .iter()
+            .find(|x| !(-0.5..0.5).contains(*x))
+        {
+            return bad(
+                "resolution.lattice_offset",
+                format!("each must lie in [-0.5, 0.5) (fractions of the marker spacing), got {x}"),
+            );
+        }
         pos("flow.q", Some(self.flow.q))?;
         pos("flow.shear_band_factor", Some(self.flow.shear_band_factor))?;
         pos(

@@ -191,8 +191,9 @@ fn run_with_tables_and_set() {
     assert!(String::from_utf8_lossy(&bad.stderr).contains("flow.q must be a positive number"));
 }
 
-/// `run --keep-periods N` draws only the first N periods; 0 periods and a negative
-/// `resolution.max_marker_move` are invalid input (exit 1) with a message naming them.
+/// `run --keep-periods N` draws only the first N periods; 0 periods, a negative
+/// `resolution.max_marker_move` and a `resolution.lattice_offset` off [−0.5, 0.5) are
+/// invalid input (exit 1) with a message naming them.
 #[test]
 fn run_keep_periods_and_cadence_setting() {
     let scenario = demo_data().join("scenario.toml");
@@ -277,6 +278,11 @@ fn run_keep_periods_and_cadence_setting() {
     assert_eq!(bad.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&bad.stderr)
         .contains("resolution.max_marker_move must be a number ≥ 0"));
+    let bad = run(&["--set", "resolution.lattice_offset=[0.5, 0.0]"]);
+    assert_eq!(bad.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&bad.stderr).contains(
+        "resolution.lattice_offset each must lie in [-0.5, 0.5) (fractions of the marker spacing), got 0.5"
+    ));
 }
 
 /// A run killed at any moment resumes with `--resume` and writes the same outputs, byte

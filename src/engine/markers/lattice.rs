@@ -6,8 +6,11 @@ use crate::model::BlockModel;
 /// The marker lattice over the block grid.
 #[derive(Debug, Clone, Copy)]
 pub struct Lattice {
-    /// Lattice origin (grid minimum corner), m.
+    /// Lattice origin, m: the grid's minimum corner, moved in plan by the offset
+    /// ([`with_offset`](Self::with_offset)). Site (i, j, k) lies at origin + (i, j, k, + ½) s.
     pub origin: [f64; 3],
+    /// The block grid's minimum corner, m (where the first cells start).
+    grid_min: [f64; 3],
     /// Spacing s, m.
     pub s: f64,
     /// Sites per axis.
@@ -21,9 +24,28 @@ impl Lattice {
         let n = [0, 1, 2].map(|a| (((max[a] - bm.origin[a]) / s).round() as usize).max(1));
         Lattice {
             origin: bm.origin,
+            grid_min: bm.origin,
             s,
             n,
         }
+    }
+
+    /// The same lattice moved in plan by `offset` (x, y) times the spacing, each in
+    /// [−½, ½) (`resolution.lattice_offset`), holding the sites whose centres lie on the
+    /// grid. The first and last cells along x and y stretch or shrink (to between s/2 and
+    /// 3s/2) so that the cells still tile the grid. Another offset samples the same ground with other sites: the spread of
+    /// the results between offsets is the markers' sampling noise (`docs::performance`).
+    pub fn with_offset(mut self, bm: &BlockModel, offset: [f64; 2]) -> Lattice {
+        let max = bm.max_corner();
+        for a in 0..2 {
+            if offset[a] != 0.0 {
+                self.origin[a] = self.grid_min[a] + offset[a] * self.s;
+                // The sites whose centres lie before the far face.
+                let n = ((max[a] - self.origin[a]) / self.s - 0.5).ceil();
+                self.n[a] = (n as usize).max(1);
+            }
+        }
+        self
     }
 
     /// Total number of sites.
@@ -152,15 +174,29 @@ impl Lattice {
             .collect()
     }
 
-    /// Length along axis `a` of the cell of site `i`: s, except that the last cell runs to
-    /// the grid's far face (the lattice holds a whole number of sites, so its far face is
-    /// within s/2 of the grid's), so that the cells tile the grid.
+    /// Length along axis `a` of the cell of site `i`: s, except that the first cell starts
+    /// at the grid's near face (it is longer or shorter than s by the offset) and the last
+    /// runs to the grid's far face (the lattice holds a whole number of sites, so its far
+    /// face is within s/2 of the grid's), so that the cells tile the grid.
     #[inline]
     fn cell_len(&self, a: usize, i: usize, max: f64) -> f64 {
-        let last = max - self.origin[a] - (self.n[a] - 1) as f64 * self.s;
-        // Where s divides the grid, the last cell is s itself, not s up to rounding.
-        if i + 1 == self.n[a] && (last - self.s).abs() > 1e-9 * self.s {
-            last
+        let n = self.n[a];
+        // From the site's nominal cell start [origin + i s] to its end (the far face for
+        // the last), plus the stretch from the near face to the origin for the first.
+        let to_end = if i + 1 == n {
+            max - self.origin[a] - (n - 1) as f64 * self.s
+        } else {
+            self.s
+        };
+        let from_face = if i == 0 {
+            self.origin[a] - self.grid_min[a]
+        } else {
+            0.0
+        };
+        let len = to_end + from_face;
+        // Where the cell is s, s itself, not s up to rounding.
+        if (len - self.s).abs() > 1e-9 * self.s {
+            len
         } else {
             self.s
         }
@@ -182,21 +218,30 @@ impl Lattice {
     }
 
     /// In-situ solids the lattice gives each block: the masses of the sites whose centres
-    /// lie in it. This is the block's own mass when s divides the block, and 0.71–1.40× it
-    /// on the mine scene's 15.2 m blocks at 3.4 m (`unit_masses`).
+    /// lie in it, as `BlockModel::locate` places them (a site exactly on a block face, as
+    /// an offset lattice can put it, counts in one block). This is the block's own mass
+    /// when s divides the block, and 0.71–1.40× it on the mine scene's 15.2 m blocks at
+    /// 3.4 m (`unit_masses`).
     pub fn block_masses(&self, bm: &BlockModel, unit: &[f64]) -> Vec<f64> {
         let max = bm.max_corner();
+        // Per axis and grid cell, the cell lengths of the sites centred in it, summed.
+        let len: [Vec<f64>; 3] = [0, 1, 2].map(|a| {
+            let mut v = vec![0.0; bm.dims[a]];
+            for i in 0..self.n[a] {
+                let centre = self.origin[a] + (i as f64 + 0.5) * self.s;
+                let t = (centre - bm.origin[a]) / bm.size[a];
+                if t >= 0.0 && t < bm.dims[a] as f64 {
+                    v[t as usize] += self.cell_len(a, i, max[a]);
+                }
+            }
+            v
+        });
         (0..bm.len())
             .map(|b| {
-                let c = [bm.x[b], bm.y[b], bm.z[b]];
-                let len: f64 = (0..3)
-                    .map(|a| {
-                        self.range(a, c[a] - 0.5 * bm.size[a], c[a] + 0.5 * bm.size[a])
-                            .map_or(0.0, |(i0, i1)| {
-                                (i0..=i1).map(|i| self.cell_len(a, i, max[a])).sum::<f64>()
-                            })
-                    })
-                    .product();
+                let c = bm
+                    .cell([bm.x[b], bm.y[b], bm.z[b]])
+                    .expect("a block's centre lies in its grid cell");
+                let len: f64 = (0..3).map(|a| len[a][c[a]]).product();
                 len * unit[b] / self.s.powi(3)
             })
             .collect()
@@ -211,6 +256,7 @@ mod tests {
     fn lattice_ranges() {
         let l = Lattice {
             origin: [0.0; 3],
+            grid_min: [0.0; 3],
             s: 1.0,
             n: [10, 10, 10],
         };
@@ -223,21 +269,31 @@ mod tests {
 
     /// Sites weigh the cube around them and the cells tile the grid: with 17.5 mm markers
     /// on 50 mm blocks (2 or 3 sites per block along an axis, last cells 10 mm long) the
-    /// sites' masses and the blocks' lattice masses both add up to the box's in-situ mass.
+    /// sites' masses and the blocks' lattice masses both add up to the box's in-situ mass,
+    /// at any plan offset of the lattice (first cells 0.5 s to 1.5 s long), with every site
+    /// on the grid.
     #[test]
     fn site_masses_tile_the_grid() {
         let b = crate::model::synthetic::UniformBox::castro_isolated();
         let bm = b.scene().blocks;
-        let l = Lattice::new(&bm, 0.0175);
-        let unit = l.unit_masses(&bm);
-        let sites: f64 = (0..l.len())
-            .map(|id| l.site_mass(&bm, id, unit[bm.locate(l.pos(id)).unwrap()]))
-            .sum();
-        let blocks: f64 = l.block_masses(&bm, &unit).iter().sum();
         let total = b.extent.iter().product::<f64>() * b.density * (1.0 - b.n0);
-        assert!((sites / total - 1.0).abs() < 1e-9, "{sites} {total}");
-        assert!((blocks / total - 1.0).abs() < 1e-9, "{blocks} {total}");
-        assert_eq!(l.site_mass(&bm, l.id(3, 4, 5), unit[0]), unit[0]);
+        for offset in [[0.0, 0.0], [0.49, -0.5], [-0.5, 0.49], [0.3, -0.2]] {
+            let l = Lattice::new(&bm, 0.0175).with_offset(&bm, offset);
+            let unit = l.unit_masses(&bm);
+            let sites: f64 = (0..l.len())
+                .map(|id| l.site_mass(&bm, id, unit[bm.locate(l.pos(id)).unwrap()]))
+                .sum();
+            let blocks: f64 = l.block_masses(&bm, &unit).iter().sum();
+            assert!(
+                (sites / total - 1.0).abs() < 1e-9,
+                "{offset:?}: {sites} {total}"
+            );
+            assert!(
+                (blocks / total - 1.0).abs() < 1e-9,
+                "{offset:?}: {blocks} {total}"
+            );
+            assert_eq!(l.site_mass(&bm, l.id(3, 4, 5), unit[0]), unit[0]);
+        }
     }
 
     /// `layers_at_level` gives exactly the layers whose centres the level function puts at
@@ -247,6 +303,7 @@ mod tests {
     fn layers_at_level_are_the_layers_the_level_test_places_there() {
         let l = Lattice {
             origin: [0.0, 0.0, 2347.0],
+            grid_min: [0.0, 0.0, 2347.0],
             s: 1.9,
             n: [1, 1, 80],
         };
@@ -278,6 +335,7 @@ mod tests {
     fn next_site_is_the_nearest_site_beyond_the_radius() {
         let l = Lattice {
             origin: [-3.0, 2.0, 0.0],
+            grid_min: [-3.0, 2.0, 0.0],
             s: 0.5,
             n: [24, 20, 4],
         };
