@@ -545,7 +545,7 @@ pub const SURFACE: TableSpec = TableSpec {
 /// The speed–accuracy sweep (`caveflow sweep`).
 pub const SWEEP: TableSpec = TableSpec {
     name: "sweep",
-    description: "One run of the speed–accuracy sweep: a resolution (as multipliers of the scene's default), its wall time, and its errors against the converged reference run.",
+    description: "One run of the speed–accuracy sweep: a resolution (as multipliers of the scene's default), its wall time, and its errors against the reference (the mean of two runs at two lattice offsets, analysis::sweep).",
     fields: &[
         f("h_mult", F64, "-", "Disk thickness h as a multiple of the default", true, &[]),
         f("spacing_mult", F64, "-", "Marker spacing as a multiple of the default", true, &[]),
@@ -563,8 +563,8 @@ pub const SWEEP: TableSpec = TableSpec {
         f("iez_height_error", F64, "-", "Mean relative error over drawpoints of the IEZ height (95th percentile of drawn origin heights above the drawpoint)", true, &[]),
         f("delivered", F64, "-", "Credited / scheduled tonnes", true, &[]),
         f("is_default", I64, "-", "1 for the default resolution", true, &[]),
-        f("is_reference", I64, "-", "1 for the reference run; its error columns hold its own estimated error (the check run's over 2^p − 1, analysis::sweep)", true, &[]),
-        f("is_reference_check", I64, "-", "1 for the run at twice the reference's h and spacing that estimates the reference's own error", true, &[]),
+        f("is_reference", I64, "-", "1 for the reference; its error columns hold its own error: the noise measured between its two runs and the bias its check leaves unexplained (analysis::sweep)", true, &[]),
+        f("is_reference_check", I64, "-", "1 for the check at twice the reference's h and spacing (two runs, like the reference) that bounds the reference's bias", true, &[]),
         f("pareto", I64, "-", "1 when no other run is both faster and has a smaller grade_rmse", true, &[]),
         f("is_auto", I64, "-", "1 for the automatic resolution chosen for the sweep's accuracy target (engine::resolution)", true, &[]),
     ],

@@ -23,22 +23,28 @@
 //!   above the drawpoint (the extent of the isolated extraction zone); the mean relative
 //!   difference over drawpoints.
 //!
-//! # The reference's own error
+//! # The reference and its own error
 //! REBOP has no closed form to compare against, so the reference is a fine run, and the
-//! errors are distances to it. How far the reference itself is from the converged limit is
-//! estimated, not assumed: a check run at twice the reference's h and spacing (same
-//! increment, every marker every update) is compared with it, and, if the error falls as
-//! the spacing to the power p, the reference's own error is the check's divided by
-//! 2^p − 1 (Richardson). p is [`REFERENCE_ORDER`], the order of a sampling error. Where the
-//! error is noise rather than bias the estimate is high (two independent noises add in
-//! quadrature: the check's distance would then be √(2^(2p) + 1) times the reference's own
-//! error, not 2^p − 1), so it is an upper bound. The reference row of the table carries these
-//! estimates in its error columns; the check run is a row of its own (`is_reference_check`).
+//! errors are distances to it. Its error is the markers' sampling noise above all
+//! (`docs::performance`, "Sampling noise"), so the reference is run twice, on the lattice
+//! and on the lattice moved in plan by [`TWIN_OFFSET`] (`resolution.lattice_offset`): two
+//! equally good samples of the same ground. The errors are distances to their mean (per
+//! drawpoint-period for the grades, per drawpoint for the rest). Half the distance between
+//! the two is the noise ν of that mean (two independent noises σ lie √2 σ apart; their
+//! mean is σ/√2 from the limit).
+//!
+//! What noise does not explain is bias. A check at twice the reference's h and spacing
+//! (same increment, every marker every update), also run twice the same way, has its mean
+//! at d_c from the reference, and that mean's own noise is ν_c (half the distance between
+//! its two runs). The part of d_c that neither noise explains, b = √(max(0, d_c² − ν_c² −
+//! ν²)), is the bias between the check and the reference; if the bias falls at least as the
+//! resolution (first order), the reference's own bias is at most b. The reference row holds
+//! its own error √(ν² + b²), per measure; the check row holds d_c (`is_reference_check`).
 //!
 //! Every run is made with `flow.enforce_stability = false`: the coarse and fine corners of the
 //! grid are studies of the method, never predictions, and may fall outside where it holds.
 
-use std::collections::HashMap;
+use std::collections::BTreeMap;
 use std::path::Path;
 use std::time::Instant;
 
@@ -234,39 +240,36 @@ fn mean_relative(a: &[f64], r: &[f64]) -> f64 {
     }
 }
 
-/// Order p of the error in the resolution, for the reference's own error (module docs): a
-/// drawpoint-period's grade is the mean of N ∝ s⁻³ markers, so its sampling error goes as
-/// s^(3/2).
-pub const REFERENCE_ORDER: f64 = 1.5;
+/// Plan offset (x, y) of the reference's and the check's second runs, in fractions of the
+/// spacing, added to the scenario's own (module docs): half a spacing in x and a quarter
+/// in y, another sample of the ground as far as a plan offset goes from the first.
+pub const TWIN_OFFSET: [f64; 2] = [0.5, 0.25];
 
 /// Relative RMSE of the first grade over the drawpoint-periods both runs drew from.
 pub fn grade_rmse(out: &RunOutput, reference: &RunOutput) -> f64 {
-    grade_rmse_from(out, reference, i64::MIN)
+    rmse_from(&grades(out), &grades(reference), i64::MIN)
 }
 
-/// [`grade_rmse`] over the periods from `first` on.
-fn grade_rmse_from(out: &RunOutput, reference: &RunOutput, first: i64) -> f64 {
-    let (Some(g), Some(gr)) = (
-        out.extraction.grades.first(),
-        reference.extraction.grades.first(),
-    ) else {
-        return f64::NAN;
+/// The first grade per (drawpoint, period), where finite.
+fn grades(out: &RunOutput) -> BTreeMap<(u32, i64), f64> {
+    let e = &out.extraction;
+    let Some(g) = e.grades.first() else {
+        return BTreeMap::new();
     };
-    let key = |e: &crate::engine::result::Extraction, i: usize| (e.drawpoint[i], e.period[i]);
-    let rows: HashMap<(u32, i64), usize> = (0..out.extraction.period.len())
-        .map(|i| (key(&out.extraction, i), i))
-        .collect();
+    (0..e.period.len())
+        .filter(|&i| g[i].is_finite())
+        .map(|i| ((e.drawpoint[i], e.period[i]), g[i]))
+        .collect()
+}
+
+/// Root mean square of g − r over the keys both hold, from period `first` on, over the
+/// mean of r there.
+fn rmse_from(g: &BTreeMap<(u32, i64), f64>, r: &BTreeMap<(u32, i64), f64>, first: i64) -> f64 {
     let (mut sq, mut sum, mut n) = (0.0, 0.0, 0usize);
-    for (j, &grj) in gr.iter().enumerate() {
-        if reference.extraction.period[j] < first {
-            continue;
-        }
-        let Some(&i) = rows.get(&key(&reference.extraction, j)) else {
-            continue;
-        };
-        if g[i].is_finite() && grj.is_finite() {
-            sq += (g[i] - grj).powi(2);
-            sum += grj;
+    for (k, &rk) in r.iter().filter(|(k, _)| k.1 >= first) {
+        if let Some(&gk) = g.get(k) {
+            sq += (gk - rk).powi(2);
+            sum += rk;
             n += 1;
         }
     }
@@ -274,6 +277,54 @@ fn grade_rmse_from(out: &RunOutput, reference: &RunOutput, first: i64) -> f64 {
         return f64::NAN;
     }
     (sq / n as f64).sqrt() / (sum / n as f64).abs()
+}
+
+/// What the errors compare, of one run or the mean of two (module docs).
+struct Measures {
+    /// First grade per (drawpoint, period).
+    grade: BTreeMap<(u32, i64), f64>,
+    /// Per drawpoint: dilution entry, widest disk, IEZ height.
+    de: Vec<f64>,
+    w: Vec<f64>,
+    h: Vec<f64>,
+}
+
+impl Measures {
+    fn of(out: &RunOutput, scene: &Scene) -> Measures {
+        let n_dp = scene.drawpoints.len();
+        Measures {
+            grade: grades(out),
+            de: dilution_entries(out, n_dp),
+            w: imz_widths(out, n_dp),
+            h: iez_heights(out, scene),
+        }
+    }
+
+    /// The mean of two runs' measures (NaN where either has none).
+    fn mean(&self, o: &Measures) -> Measures {
+        let mid = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| 0.5 * (x + y)).collect();
+        Measures {
+            grade: self
+                .grade
+                .iter()
+                .filter_map(|(k, &g)| o.grade.get(k).map(|&go| (*k, 0.5 * (g + go))))
+                .collect(),
+            de: mid(&self.de, &o.de),
+            w: mid(&self.w, &o.w),
+            h: mid(&self.h, &o.h),
+        }
+    }
+
+    /// Errors of these measures against `r`; `late` is the first period of the second half.
+    fn errors(&self, r: &Measures, late: i64) -> Errors {
+        Errors {
+            grade: rmse_from(&self.grade, &r.grade, i64::MIN),
+            grade_late: rmse_from(&self.grade, &r.grade, late),
+            de: mean_relative(&self.de, &r.de),
+            w: mean_relative(&self.w, &r.w),
+            h: mean_relative(&self.h, &r.h),
+        }
+    }
 }
 
 /// Marks the rows on the Pareto front of wall time against grade RMSE: no other row is both
@@ -339,7 +390,6 @@ pub fn sweep(
             res.push(auto);
             grid.len() - 1
         });
-    let n_dp = scene.drawpoints.len();
     // The check of the reference's own error: twice its h and spacing, its increment, every
     // marker every update.
     let check_mult = [
@@ -352,26 +402,26 @@ pub fn sweep(
         ..times(&default, check_mult)
     };
     let total = grid.len() + 1;
-    let (reference, ref_wall) = run_at(scene, base, &res[0], cfg.reference, cfg.repeats)?;
+    // The reference and its check, each run on the lattice and on it moved by TWIN_OFFSET.
+    let mut twin = base.clone();
+    let o = &mut twin.resolution.lattice_offset;
+    for a in 0..2 {
+        o[a] = (o[a] + TWIN_OFFSET[a] + 0.5).rem_euclid(1.0) - 0.5;
+    }
     // The second half of the schedule's periods.
     let ids = &scene.periods.id;
     let late = ids.get(ids.len() / 2).copied().unwrap_or(i64::MAX);
-    let (ref_de, ref_w, ref_h) = (
-        dilution_entries(&reference, n_dp),
-        imz_widths(&reference, n_dp),
-        iez_heights(&reference, scene),
-    );
-    let errors = |out: &RunOutput| Errors {
-        grade: grade_rmse(out, &reference),
-        grade_late: grade_rmse_from(out, &reference, late),
-        de: mean_relative(&dilution_entries(out, n_dp), &ref_de),
-        w: mean_relative(&imz_widths(out, n_dp), &ref_w),
-        h: mean_relative(&iez_heights(out, scene), &ref_h),
+    let pair = |res: &ResolvedResolution, mult| -> Result<_, SweepError> {
+        let (a, wall) = run_at(scene, base, res, mult, cfg.repeats)?;
+        let (b, _) = run_at(scene, &twin, res, mult, 1)?;
+        let (ma, mb) = (Measures::of(&a, scene), Measures::of(&b, scene));
+        Ok((a, wall, ma.mean(&mb), ma.errors(&mb, late)))
     };
-    let (check, check_wall) = run_at(scene, base, &check_res, check_mult, cfg.repeats)?;
-    let check_errors = errors(&check);
-    // Richardson: the error of the reference, if it falls as spacing^p.
-    let own = check_errors.scaled(1.0 / (2f64.powf(REFERENCE_ORDER) - 1.0));
+    let (reference, ref_wall, ref_mean, ref_apart) = pair(&res[0], cfg.reference)?;
+    let errors = |out: &RunOutput| Measures::of(out, scene).errors(&ref_mean, late);
+    let (check, check_wall, check_mean, check_apart) = pair(&check_res, check_mult)?;
+    let check_errors = check_mean.errors(&ref_mean, late);
+    let own = Errors::own(&ref_apart, &check_apart, &check_errors);
     let mut rows = Vec::with_capacity(total);
     for row in [
         SweepRow {
@@ -412,14 +462,22 @@ struct Errors {
 }
 
 impl Errors {
-    /// Every error times `k`.
-    fn scaled(&self, k: f64) -> Errors {
+    /// The reference's own error (module docs), per measure: its noise ν (half the
+    /// distance `apart` between its two runs) and the bias b that the distance `check`
+    /// of the check's mean leaves unexplained by ν and the check's own noise ν_c (half
+    /// the distance `check_apart` between its two runs).
+    fn own(apart: &Errors, check_apart: &Errors, check: &Errors) -> Errors {
+        let f = |apart: f64, check_apart: f64, check: f64| {
+            let (nu, nu_c) = (0.5 * apart, 0.5 * check_apart);
+            let b2 = (check * check - nu_c * nu_c - nu * nu).max(0.0);
+            (nu * nu + b2).sqrt()
+        };
         Errors {
-            grade: k * self.grade,
-            grade_late: k * self.grade_late,
-            de: k * self.de,
-            w: k * self.w,
-            h: k * self.h,
+            grade: f(apart.grade, check_apart.grade, check.grade),
+            grade_late: f(apart.grade_late, check_apart.grade_late, check.grade_late),
+            de: f(apart.de, check_apart.de, check.de),
+            w: f(apart.w, check_apart.w, check.w),
+            h: f(apart.h, check_apart.h, check.h),
         }
     }
 }

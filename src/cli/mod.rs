@@ -677,7 +677,7 @@ fn sweep_cmd(mut a: SweepArgs) -> Result<ExitCode> {
             100.0 * r.imz_width_error,
             100.0 * r.iez_height_error,
             if r.is_reference {
-                " (reference: its own estimated error)"
+                " (reference: its own error, noise and bias)"
             } else if r.is_reference_check {
                 " (check of the reference)"
             } else {
