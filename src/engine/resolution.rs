@@ -39,7 +39,7 @@
 //! median distance between neighbouring drawpoints (an IMZ must hold enough markers across
 //! to be sampled), and no finer than [`FRAG_FRACTION`] × d̄ (markers closer than fragments
 //! stand for no more material than one fragment). h stays the scene default (h/2 costs
-//! about twice the time and moves the whole-run grade error from 1.58% to 1.38%) but never
+//! about twice the time and moves the whole-run grade error from 1.53% to 1.34%) but never
 //! thinner than d̄ (h/d̄ ≥ 1, `stability`). The increment follows the spacing: the opening
 //! disk's tonnes times the spacing over 0.5 h when coarser than 0.5 h (a marker then moves
 //! about as many spacings per update as at the demo's default), one disk when finer (at the
