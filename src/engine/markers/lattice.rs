@@ -33,8 +33,9 @@ impl Lattice {
     /// The same lattice moved in plan by `offset` (x, y) times the spacing, each in
     /// [−½, ½) (`resolution.lattice_offset`), holding the sites whose centres lie on the
     /// grid. The first and last cells along x and y stretch or shrink (to between s/2 and
-    /// 3s/2) so that the cells still tile the grid. Another offset samples the same ground with other sites: the spread of
-    /// the results between offsets is the markers' sampling noise (`docs::performance`).
+    /// 3s/2) so that the cells still tile the grid. Another offset samples the same ground
+    /// with other sites: the spread of the results between offsets is the markers'
+    /// sampling noise (`docs::performance`, "Sampling noise").
     pub fn with_offset(mut self, bm: &BlockModel, offset: [f64; 2]) -> Lattice {
         let max = bm.max_corner();
         for a in 0..2 {
