@@ -80,18 +80,21 @@ impl BlockModel {
         self.x.is_empty()
     }
 
+    /// Grid cell index along axis `a` of the coordinate `x`, or None outside the grid.
+    #[inline]
+    pub fn axis_cell(&self, a: usize, x: f64) -> Option<usize> {
+        let t = (x - self.origin[a]) / self.size[a];
+        (t >= 0.0 && t < self.dims[a] as f64).then_some(t as usize)
+    }
+
     /// Grid cell indices of a point, or None outside the grid.
     #[inline]
     pub fn cell(&self, p: [f64; 3]) -> Option<[usize; 3]> {
-        let mut c = [0usize; 3];
-        for a in 0..3 {
-            let t = (p[a] - self.origin[a]) / self.size[a];
-            if !(t >= 0.0) || t >= self.dims[a] as f64 {
-                return None;
-            }
-            c[a] = t as usize;
-        }
-        Some(c)
+        Some([
+            self.axis_cell(0, p[0])?,
+            self.axis_cell(1, p[1])?,
+            self.axis_cell(2, p[2])?,
+        ])
     }
 
     /// Row of the block containing a point, in O(1); None outside the grid or in a missing

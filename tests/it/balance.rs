@@ -56,6 +56,15 @@ fn assert_unbiased(name: &str, scene: &Scene, out: &RunOutput, tol: f64) {
         .any(|w| w.rule == WarningRule::MassBalance));
 }
 
+/// Castro's isolated draw (summary §3.4, Simulation 2), 10 kg a period for ten periods.
+fn castro_10kg() -> Scene {
+    UniformBox {
+        tonnes: 0.01,
+        ..UniformBox::castro_isolated()
+    }
+    .scene()
+}
+
 /// Isolated draw at physical-model scale (summary §3.4, Simulation 2: 8.3 mm fragments, a
 /// 120 mm drawpoint, a 3.3 m high model), 10 kg a period for ten periods, at the automatic
 /// resolution: the markers drawn weigh what the schedule asks. Before the balance was made
@@ -66,11 +75,7 @@ fn assert_unbiased(name: &str, scene: &Scene, out: &RunOutput, tol: f64) {
 /// the schedule; the median over five periods is within 0.01 of 1 when unbiased.
 #[test]
 fn isolated_draw_draws_the_scheduled_marker_mass() {
-    let scene = UniformBox {
-        tonnes: 0.01,
-        ..UniformBox::castro_isolated()
-    }
-    .scene();
+    let scene = castro_10kg();
     let out = run(&scene, &Scenario::default());
     assert_unbiased("isolated draw", &scene, &out, 0.02);
 }
@@ -81,11 +86,7 @@ fn isolated_draw_draws_the_scheduled_marker_mass() {
 /// off the default lattice in x and y), and delivers the same tonnes.
 #[test]
 fn an_offset_lattice_samples_the_same_draw_from_other_sites() {
-    let scene = UniformBox {
-        tonnes: 0.01,
-        ..UniformBox::castro_isolated()
-    }
-    .scene();
+    let scene = castro_10kg();
     let mut sc = Scenario::default();
     sc.resolution.lattice_offset = [0.3, -0.45];
     let out = run(&scene, &sc);

@@ -59,17 +59,19 @@ impl Lattice {
         self.len() == 0
     }
 
+    /// Coordinate along axis `a` of the centres of the sites with index `i` on that axis.
+    #[inline]
+    pub fn centre(&self, a: usize, i: usize) -> f64 {
+        self.origin[a] + (i as f64 + 0.5) * self.s
+    }
+
     /// Position of site `id`.
     #[inline]
     pub fn pos(&self, id: usize) -> [f64; 3] {
         let i = id % self.n[0];
         let j = (id / self.n[0]) % self.n[1];
         let k = id / (self.n[0] * self.n[1]);
-        [
-            self.origin[0] + (i as f64 + 0.5) * self.s,
-            self.origin[1] + (j as f64 + 0.5) * self.s,
-            self.origin[2] + (k as f64 + 0.5) * self.s,
-        ]
+        [self.centre(0, i), self.centre(1, j), self.centre(2, k)]
     }
 
     /// Site index range (inclusive) along axis `a` whose centres lie in [lo, hi).
@@ -84,7 +86,7 @@ impl Lattice {
     /// Height of the centres of layer `k`, m (as [`pos`](Self::pos) places them).
     #[inline]
     pub fn layer_z(&self, k: usize) -> f64 {
-        self.origin[2] + (k as f64 + 0.5) * self.s
+        self.centre(2, k)
     }
 
     /// The layers (inclusive index range) whose centres `level` places at level `i`, for a
@@ -133,7 +135,7 @@ impl Lattice {
         // Row j is the same in every layer; only a² matters.
         let k = kr.0;
         for j in j0..=j1 {
-            let dy = self.origin[1] + (j as f64 + 0.5) * self.s - y;
+            let dy = self.centre(1, j as usize) - y;
             let outer = (r * r - dy * dy).max(0.0).sqrt();
             let (lo, hi) = match self.range(0, x - outer, x + outer + 1e-9 * self.s) {
                 Some((a, b)) => (a as isize - 1, b as isize + 1),
@@ -229,10 +231,8 @@ impl Lattice {
         let len: [Vec<f64>; 3] = [0, 1, 2].map(|a| {
             let mut v = vec![0.0; bm.dims[a]];
             for i in 0..self.n[a] {
-                let centre = self.origin[a] + (i as f64 + 0.5) * self.s;
-                let t = (centre - bm.origin[a]) / bm.size[a];
-                if t >= 0.0 && t < bm.dims[a] as f64 {
-                    v[t as usize] += self.cell_len(a, i, max[a]);
+                if let Some(c) = bm.axis_cell(a, self.centre(a, i)) {
+                    v[c] += self.cell_len(a, i, max[a]);
                 }
             }
             v
