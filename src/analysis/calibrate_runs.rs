@@ -12,8 +12,9 @@
 //! ```
 //!
 //! A run's case sets every `calibration` key (`calibration.frag_factor.<lithology>`,
-//! `n1_factor`, `friction_factor`) and, for the finer check, the four `resolution` keys at
-//! the values [`Problem::resolution`] gives, each float written to round-trip exactly. Its
+//! `n1_factor`, `friction_factor`), for the finer check the four `resolution` keys at the
+//! values [`Problem::resolution`] gives, and for the twin `resolution.lattice_offset`
+//! ([`Problem::lattice_offset`]), each float written to round-trip exactly. Its
 //! name is `run-` and 12 hex digits of the SHA-256 of those settings, so the same run has
 //! the same name in every batch and every calibration. Before each batch the study file is
 //! rewritten with every case so far; the runner skips the complete ones (by content hash,
@@ -26,7 +27,7 @@
 //! scenario=<case>/`, partitions in period order, rows in the order written: the frame the
 //! run in memory gives, value for value, so the fit is the same as
 //! [`InProcess`](super::calibrate::InProcess)'s. Every run's dataset stays (a demo run's
-//! tables take about 2.6 MB, so its 45-run calibration about 120 MB): removing `runs/`
+//! tables take about 2.6 MB, so its 46-run calibration about 124 MB): removing `runs/`
 //! frees it, and a calibration into that directory then makes every run again.
 //!
 //! # Runners
@@ -227,6 +228,14 @@ fn case(p: &Problem, t: &Trial) -> Result<(String, Vec<String>), CalibrateError>
         ] {
             sets.push(format!("resolution.{key}={}", exact(v)));
         }
+    }
+    if t.twin {
+        let [x, y] = p.lattice_offset(t);
+        sets.push(format!(
+            "resolution.lattice_offset=[{}, {}]",
+            exact(x),
+            exact(y)
+        ));
     }
     let name = format!(
         "run-{}",

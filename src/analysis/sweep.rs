@@ -27,7 +27,8 @@
 //! REBOP has no closed form to compare against, so the reference is a fine run, and the
 //! errors are distances to it. Its error is the markers' sampling noise above all
 //! (`docs::performance`, "Sampling noise"), so the reference is run twice, on the lattice
-//! and on the lattice moved in plan by [`TWIN_OFFSET`] (`resolution.lattice_offset`): two
+//! and on its twin, moved in plan by
+//! [`TWIN_OFFSET`](crate::model::scenario::TWIN_OFFSET) (`resolution.lattice_offset`): two
 //! equally good samples of the same ground. The errors are distances to their mean (per
 //! drawpoint-period for the grades, per drawpoint for the rest). Half the distance between
 //! the two is the noise ν of that mean (two independent noises σ lie √2 σ apart; their
@@ -240,11 +241,6 @@ fn mean_relative(a: &[f64], r: &[f64]) -> f64 {
     }
 }
 
-/// Plan offset (x, y) of the reference's and the check's second runs, in fractions of the
-/// spacing, added to the scenario's own (module docs): half a spacing in x and a quarter
-/// in y, another sample of the ground as far as a plan offset goes from the first.
-pub const TWIN_OFFSET: [f64; 2] = [0.5, 0.25];
-
 /// Relative RMSE of the first grade over the drawpoint-periods both runs drew from.
 pub fn grade_rmse(out: &RunOutput, reference: &RunOutput) -> f64 {
     rmse_from(&grades(out), &grades(reference), i64::MIN)
@@ -402,12 +398,9 @@ pub fn sweep(
         ..times(&default, check_mult)
     };
     let total = grid.len() + 1;
-    // The reference and its check, each run on the lattice and on it moved by TWIN_OFFSET.
+    // The reference and its check, each run on the lattice and on its twin.
     let mut twin = base.clone();
-    let o = &mut twin.resolution.lattice_offset;
-    for a in 0..2 {
-        o[a] = (o[a] + TWIN_OFFSET[a] + 0.5).rem_euclid(1.0) - 0.5;
-    }
+    twin.resolution.lattice_offset = base.resolution.twin_offset();
     // The second half of the schedule's periods.
     let ids = &scene.periods.id;
     let late = ids.get(ids.len() / 2).copied().unwrap_or(i64::MAX);

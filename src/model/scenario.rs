@@ -83,6 +83,21 @@ pub struct Resolution {
     pub lattice_offset: [f64; 2],
 }
 
+/// Plan offset, in fractions of the marker spacing, of a run's twin (added to its own
+/// `lattice_offset`): half a spacing in x and a quarter in y, another sample of the ground
+/// as far as a plan offset goes from the first. `sweep` runs its reference and check
+/// twice, and `calibrate` its fit, to measure the markers' sampling noise.
+pub const TWIN_OFFSET: [f64; 2] = [0.5, 0.25];
+
+impl Resolution {
+    /// The lattice offset of this resolution's twin: moved by [`TWIN_OFFSET`], wrapped
+    /// into [−0.5, 0.5).
+    pub fn twin_offset(&self) -> [f64; 2] {
+        let o = self.lattice_offset;
+        [0, 1].map(|a| (o[a] + TWIN_OFFSET[a] + 0.5).rem_euclid(1.0) - 0.5)
+    }
+}
+
 /// IMZ growth and marker-motion parameters (summary §3.3).
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields, default)]
@@ -801,6 +816,32 @@ fn apply_set(root: &mut toml::Table, set: &str) -> Result<(), ScenarioError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The twin's offset is the lattice's moved by TWIN_OFFSET, wrapped into the range
+    /// `check` accepts, so a twin of any valid scenario is valid.
+    #[test]
+    fn the_twin_lattice_is_moved_by_twin_offset_and_stays_in_range() {
+        let twin = |o: [f64; 2]| {
+            let mut sc = Scenario::default();
+            sc.resolution.lattice_offset = o;
+            let t = sc.resolution.twin_offset();
+            sc.resolution.lattice_offset = t;
+            sc.check().unwrap();
+            t
+        };
+        assert_eq!(twin([0.0, 0.0]), [-0.5, 0.25]);
+        assert_eq!(twin([0.25, -0.5]), [-0.25, -0.25]);
+        assert_eq!(twin([-0.5, 0.375]), [0.0, -0.375]);
+        for k in 0..100 {
+            let o = [k as f64 / 100.0 - 0.5, 0.49 - k as f64 / 101.0];
+            let t = twin(o);
+            for a in 0..2 {
+                // Off by a whole number of spacings, to rounding.
+                let r = (t[a] - o[a] - TWIN_OFFSET[a]).rem_euclid(1.0);
+                assert!(r.min(1.0 - r) < 1e-12, "{o:?} → {t:?}");
+            }
+        }
+    }
 
     /// A setting out of range is reported under its key, with what it must be; nested
     /// checks (the calibration's) name their own keys.
