@@ -75,7 +75,10 @@
 //! of the noise they were given. Measured with the finer run instead, RMS(e_finer −
 //! e_fit)/√2, the model's noise came out 2–15% low (the finer run's own noise is smaller,
 //! and two unequal noises are not √2 one of them apart), and the records' 8% high when
-//! they came from a finer run.
+//! they came from a finer run. One pair is one sample of the noise, and a rough one: a
+//! drawpoint's errors are correlated over its periods, so on the whole demo the pairs of
+//! five lattice offsets lie 1.1–2.6% apart over √2 (`docs::performance`, "Sampling
+//! noise").
 //!
 //! **Globals.** Near its minimum each profile is a parabola, S(θ) ≈ S_min + a (θ − θ̂)²,
 //! fitted by least squares to the evaluated points within 30% of the best one. As in
