@@ -275,10 +275,8 @@ mod tests {
     /// on 50 mm blocks (2 or 3 sites per block along an axis, last cells 10 mm long) the
     /// sites' masses and the blocks' lattice masses both add up to the box's in-situ mass,
     /// at any plan offset of the lattice (first cells 0.5 s to 1.5 s long), with every site
-    /// on the grid.
-    /// The sites' masses, and the blocks' sums of them, add up to the grid's mass, at four
-    /// plan offsets; also where the extents are odd multiples of s/2 (3.5 s in plan, 5.5 s
-    /// high), which put the last sites on the far faces, in no block, before
+    /// on the grid. Also where the extents are odd multiples of s/2 (3.5 s in plan, 5.5 s
+    /// high), where the last sites lay on the far faces, in no block, before
     /// [`sites_before`].
     #[test]
     fn site_masses_tile_the_grid() {
