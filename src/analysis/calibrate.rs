@@ -77,7 +77,7 @@
 //! and two unequal noises are not √2 one of them apart), and the records' 8% high when
 //! they came from a finer run. One pair is one sample of the noise, and a rough one: a
 //! drawpoint's errors are correlated over its periods, so on the whole demo the pairs of
-//! five lattice offsets lie 1.1–2.6% apart over √2 (`docs::performance`, "Sampling
+//! five lattice offsets lie 1.3–1.9% apart over √2 (`docs::performance`, "Sampling
 //! noise").
 //!
 //! **Globals.** Near its minimum each profile is a parabola, S(θ) ≈ S_min + a (θ − θ̂)²,

@@ -33,7 +33,7 @@
 //! drawpoint-period for the grades, per drawpoint for the rest). Half the distance between
 //! the two is the noise ν of that mean (two independent noises σ lie √2 σ apart; their
 //! mean is σ/√2 from the limit). One pair is a rough sample of the noise: at the demo's
-//! default resolution, pairs of lattice offsets lie 1.1–2.6% apart over √2
+//! default resolution, pairs of lattice offsets lie 1.3–1.9% apart over √2
 //! (`docs::performance`, "Sampling noise").
 //!
 //! What noise does not explain is bias. A check at twice the reference's h and spacing

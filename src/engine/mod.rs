@@ -781,7 +781,7 @@ impl<'a> Engine<'a> {
                     for k in kr.0..=kr.1 {
                         for j in jr.0..=jr.1 {
                             // Only the annulus r0 < a ≤ r of this lattice row is new.
-                            let dy = lat.origin[1] + (j as f64 + 0.5) * lat.s - g.y;
+                            let dy = lat.centre(1, j) - g.y;
                             let outer = (r * r - dy * dy).max(0.0).sqrt();
                             let inner = (r0 * r0 - dy * dy).max(0.0).sqrt();
                             let spans = if inner > 0.0 {
@@ -1237,8 +1237,8 @@ fn surface_rows(lat: &Lattice, period: i64, h: &[f64], t: &mut SurfaceTable) {
     for (c, &z) in h.iter().enumerate() {
         if z.is_finite() {
             t.period.push(period);
-            t.x.push(lat.origin[0] + ((c % lat.n[0]) as f64 + 0.5) * lat.s);
-            t.y.push(lat.origin[1] + ((c / lat.n[0]) as f64 + 0.5) * lat.s);
+            t.x.push(lat.centre(0, c % lat.n[0]));
+            t.y.push(lat.centre(1, c / lat.n[0]));
             t.z.push(z);
         }
     }

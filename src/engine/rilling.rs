@@ -289,8 +289,8 @@ pub fn rill(st: &mut RillState) -> RillStats {
                     continue;
                 }
                 let p = [
-                    lat.origin[0] + ((n % nx) as f64 + 0.5) * s,
-                    lat.origin[1] + ((n / nx) as f64 + 0.5) * s,
+                    lat.centre(0, n % nx),
+                    lat.centre(1, n / nx),
                     landing(&lat, h_low, half),
                 ];
                 if !bm.locate(p).is_some_and(|b| bm.flowable(b, st.period)) {
