@@ -71,7 +71,7 @@
 //! ground, √2 times the noise away from the first, so the noise is RMS(e_twin − e_fit)/√2
 //! per row. The records' noise is what is left beside it, √(RMSE² − model²): when the
 //! model's noise is not below the records', the fit cannot resolve what the records say,
-//! and `calibrate` says so. On the three-zone tests the records' noise found is within 2%
+//! and `calibrate` says so. On the three-zone tests the records' noise found is within 4%
 //! of the noise they were given. Measured with the finer run instead, RMS(e_finer −
 //! e_fit)/√2, the model's noise came out 2–15% low (the finer run's own noise is smaller,
 //! and two unequal noises are not √2 one of them apart), and the records' 8% high when

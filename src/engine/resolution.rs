@@ -56,9 +56,9 @@ use crate::model::{Scenario, Scene};
 
 /// Grade RMSE of the scene default against the reference over the whole demo draw: 1.58%
 /// against one reference run, in the slope sweep the exponent below comes from
-/// (`docs::performance`, "Automatic resolution"); 1.53% against the mean of the
-/// reference's two runs at two lattice offsets ("Speed and accuracy"), and 1.57% from the
-/// limit once that mean's noise is taken out ("Sampling noise").
+/// (`docs::performance`, "Automatic resolution"); 1.54% against the mean of the
+/// reference's two runs at two lattice offsets, and 1.48% from the limit once that mean's
+/// noise is taken out ("Sampling noise").
 pub const E_DEFAULT: f64 = 0.0158;
 
 /// Exponent of the grade RMSE in the marker-spacing multiple: the least-squares slope (in

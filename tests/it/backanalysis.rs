@@ -359,9 +359,9 @@ fn assert_recovers(report: &CalibrationReport, truth: &Calibration, noise: f64) 
 }
 
 /// Three zones moved at once, records from a run at the fit's own resolution (5% noise,
-/// seed 7). Measured: Urad 0.763 ± 0.015 (truth 0.75), Primos 1.272 ± 0.025 (1.3),
-/// contact 1.034 ± 0.028 (1); overall RMSE 0.0190% → 0.0146%; the model's noise 0.0082%,
-/// the records' 0.0121% (0.0123% added); 39 runs.
+/// seed 7). Measured: Urad 0.763 ± 0.019 (truth 0.75), Primos 1.272 ± 0.026 (1.3),
+/// contact 1.034 ± 0.028 (1); overall RMSE 0.0190% → 0.0146%; the model's noise 0.0085%,
+/// the records' 0.0119% (0.0123% added); 39 runs.
 #[test]
 fn calibrate_recovers_three_zones_moved_at_once() {
     let (scene, sc) = reduced();
@@ -374,11 +374,9 @@ fn calibrate_recovers_three_zones_moved_at_once() {
 
 /// The same truth, records from a run at half the fit's marker spacing (8 times the
 /// markers): the fit must absorb what its own resolution gets wrong, and its SE must say
-/// how much. Measured: Urad 0.771 ± 0.029, Primos 1.335 ± 0.036, contact 1.055 ± 0.033
-/// (of which the resolution check's shift 0.024, 0.028 and 0.023); overall RMSE 0.0175% →
-/// 0.0153%; the model's noise 0.0088%, the records' 0.0126% (0.0124% added); 47 runs.
-/// Measured with the finer check run instead of the twin, the model's noise came out at
-/// 0.0074% (the finer run's own noise is smaller) and the records' at 0.0134%, 8% high.
+/// how much. Measured: Urad 0.771 ± 0.029, Primos 1.335 ± 0.041, contact 1.055 ± 0.028
+/// (of which the resolution check's shift 0.025, 0.034 and 0.016); overall RMSE 0.0175% →
+/// 0.0153%; the model's noise 0.0089%, the records' 0.0125% (0.0124% added); 47 runs.
 #[test]
 fn calibrate_recovers_three_zones_from_records_of_a_finer_run() {
     let (scene, sc) = reduced();
