@@ -56,6 +56,17 @@ fn assert_unbiased(name: &str, scene: &Scene, out: &RunOutput, tol: f64) {
         .any(|w| w.rule == WarningRule::MassBalance));
 }
 
+/// Drawpoint `d`'s marker tonnes over its scheduled tonnes, over the run.
+fn marker_ratio(out: &RunOutput, d: usize) -> f64 {
+    let ex = &out.extraction;
+    let (m, s) = (0..ex.drawpoint.len())
+        .filter(|&k| ex.drawpoint[k] as usize == d)
+        .fold((0.0, 0.0), |a, k| {
+            (a.0 + ex.marker_tonnes[k], a.1 + ex.scheduled_tonnes[k])
+        });
+    m / s
+}
+
 /// Castro's isolated draw (summary §3.4, Simulation 2), 10 kg a period for ten periods.
 fn castro_10kg() -> Scene {
     UniformBox {
@@ -134,13 +145,7 @@ fn a_lattice_with_sites_on_a_wall_draws_beside_it_as_the_default_one() {
     let ratio = |offset: [f64; 2]| {
         let mut sc = scenario(DemoScale::Small, 42);
         sc.resolution.lattice_offset = offset;
-        let ex = run(&scene, &sc).extraction;
-        let (m, s) = (0..ex.drawpoint.len())
-            .filter(|&k| ex.drawpoint[k] as usize == d)
-            .fold((0.0, 0.0), |a, k| {
-                (a.0 + ex.marker_tonnes[k], a.1 + ex.scheduled_tonnes[k])
-            });
-        m / s
+        marker_ratio(&run(&scene, &sc), d)
     };
     let (plain, on_wall) = (ratio([0.0, 0.0]), ratio([-0.5, 0.0]));
     eprintln!("D01-01 alone, marker tonnes over scheduled: {plain:.4} at (0, 0), {on_wall:.4} at (-0.5, 0)");
@@ -452,16 +457,7 @@ fn unequal_draw_from_overlapping_imzs_keeps_each_drawpoints_balance() {
         scene.schedule.tonnes[2 * p + 1] = 0.02;
     }
     let out = run(&scene, &scenario(0.025, 0.0125, 0.001));
-    let ex = &out.extraction;
-    let ratio = |d: u32| {
-        let (m, s) = (0..ex.drawpoint.len())
-            .filter(|&k| ex.drawpoint[k] == d)
-            .fold((0.0, 0.0), |a, k| {
-                (a.0 + ex.marker_tonnes[k], a.1 + ex.scheduled_tonnes[k])
-            });
-        m / s
-    };
-    let (a, b) = (ratio(0), ratio(1));
+    let (a, b) = (marker_ratio(&out, 0), marker_ratio(&out, 1));
     eprintln!(
         "unequal draw: marker / scheduled tonnes, leader {a:.4}, follower {b:.4}; sum {:.4}",
         out.balance.marker_tonnes / out.balance.scheduled_tonnes

@@ -70,22 +70,28 @@ impl Lattice {
     /// (0, 0)). In z the sites stay on the regular lattice.
     #[inline]
     pub fn centre(&self, a: usize, i: usize) -> f64 {
-        if self.moved(a, i) {
-            let start = if i == 0 {
-                self.grid_min[a]
-            } else {
-                self.origin[a] + i as f64 * self.s
-            };
-            start + 0.5 * self.cell_len(a, i, self.grid_max[a])
-        } else {
-            self.origin[a] + (i as f64 + 0.5) * self.s
+        match self.moved_len(a, i) {
+            Some(len) => {
+                let start = if i == 0 {
+                    self.grid_min[a]
+                } else {
+                    self.origin[a] + i as f64 * self.s
+                };
+                start + 0.5 * len
+            }
+            None => self.origin[a] + (i as f64 + 0.5) * self.s,
         }
     }
 
-    /// Whether site `i` along axis `a` sits off the regular lattice ([`centre`](Self::centre)).
+    /// The length of the cell of site `i` along axis `a` if that site sits off the regular
+    /// lattice ([`centre`](Self::centre)): a first or last site in plan whose cell is not s.
     #[inline]
-    fn moved(&self, a: usize, i: usize) -> bool {
-        a < 2 && (i == 0 || i + 1 == self.n[a]) && self.cell_len(a, i, self.grid_max[a]) != self.s
+    fn moved_len(&self, a: usize, i: usize) -> Option<f64> {
+        if a == 2 || (i != 0 && i + 1 != self.n[a]) {
+            return None;
+        }
+        let len = self.cell_len(a, i, self.grid_max[a]);
+        (len != self.s).then_some(len)
     }
 
     /// Position of site `id`.
@@ -107,14 +113,14 @@ impl Lattice {
         // A first or last site off the regular lattice (by at most s/4) is tested where it
         // sits; its neighbours are regular.
         let holds = |i: usize| (lo..hi).contains(&self.centre(a, i));
-        if self.moved(a, 0) {
+        if self.moved_len(a, 0).is_some() {
             if holds(0) {
                 (t0, t1) = (0.0, t1.max(0.0));
             } else if t0 == 0.0 {
                 t0 = 1.0;
             }
         }
-        if self.moved(a, last) {
+        if self.moved_len(a, last).is_some() {
             if holds(last) {
                 (t0, t1) = (t0.min(last as f64), last as f64);
             } else if t1 == last as f64 {
