@@ -38,7 +38,7 @@
 //! to the summary's Gaussian once Σ L̄ ≫ VMR. It is also the release–capture picture of
 //! Bridgwater et al. (summary §7.1): mostly tiny moves, now and then a long fall. The draw
 //! comes from the marker's own stream, keyed by (seed, marker id, step)
-//! (`fragmentation::marker_rng`), so runs are reproducible on any number of threads.
+//! (`random::marker_rng`), so runs are reproducible on any number of threads.
 //!
 //! # The move
 //! The percolation move is vertical only, applied after the marker's bulk move (summary
@@ -52,8 +52,8 @@
 
 use rand_distr::{Distribution, Gamma};
 
-use super::fragmentation::{marker_rng, PERCOLATION_STREAM};
 use super::markers::{Markers, MotionField, Step};
+use super::random::{marker_rng, PERCOLATION_STREAM};
 use crate::model::BlockModel;
 
 /// Mean percolation distance L̄ = k1 Γ d̄ exp(−k2 d_p / d̄), m.
@@ -157,8 +157,8 @@ impl Percolation<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::engine::fragmentation::marker_rng;
     use crate::engine::imz::{DiskMotion, ImzGeom, ImzGrid};
+    use crate::engine::random::marker_rng;
 
     #[test]
     fn percolation_law_against_hand_values() {
@@ -256,6 +256,7 @@ mod tests {
             grid: &grid,
             ground: None,
             reach: crate::engine::markers::WallReach::default(),
+            seed: 0,
         };
         let mut bm = crate::model::synthetic::UniformBox::castro_isolated()
             .scene()
@@ -273,7 +274,7 @@ mod tests {
         for id in 0..n {
             mk.push(id, [2.0, 0.0, 150.5], 1.0, 0, 0.001);
         }
-        let bulk = field.step([2.0, 0.0, 150.5]);
+        let bulk = field.step([2.0, 0.0, 150.5], 0);
         // Cone (R = 4 ≤ w): Δz = −3 × 0.5 × (1 − 2/4) / (π 16); Γ = |Δz| / 4.
         let gamma = 3.0 * 0.5 * 0.5 / (std::f64::consts::PI * 16.0) / 4.0;
         assert!((bulk.strain - gamma).abs() < 1e-15);
@@ -329,6 +330,7 @@ mod tests {
             grid: &grid,
             ground: None,
             reach: crate::engine::markers::WallReach::default(),
+            seed: 0,
         };
         let scene = crate::model::synthetic::UniformBox {
             extent: [10.0, 10.0, 6.0],
@@ -361,7 +363,7 @@ mod tests {
         }
         let steps: Vec<Step> = (0..mk.len())
             .map(|k| {
-                let mut s = field.step([mk.x[k], mk.y[k], mk.z[k]]);
+                let mut s = field.step([mk.x[k], mk.y[k], mk.z[k]], mk.id[k]);
                 let before = s;
                 perc.apply(&mk, k, &mut s);
                 assert_eq!(s.dx, before.dx, "sideways");

@@ -62,34 +62,17 @@
 //! | σ_t | block `tensile_strength` | 0.1 × UCS | MassFlow's ratio; a block with neither does not break |
 //!
 //! # Random numbers
-//! Every random choice is made from a ChaCha8 stream keyed by (run seed, marker id, step,
-//! purpose) ([`marker_rng`]), never from a shared generator, so the result does not depend on
-//! the order in which threads reach the markers.
+//! Every random choice is made from the marker's own stream ([`marker_rng`]), never from a
+//! shared generator, so the result does not depend on the order in which threads reach the
+//! markers.
 
-use rand::{Rng, SeedableRng};
-use rand_chacha::ChaCha8Rng;
+use rand::Rng;
 use rayon::prelude::*;
 
 use super::markers::Markers;
+use super::random::{marker_rng, PRIMARY_STREAM};
 use crate::model::scenario::FragmentationParams;
 use crate::model::BlockModel;
-
-/// Purpose key of the primary-size draw in [`marker_rng`].
-pub const PRIMARY_STREAM: u64 = 1;
-/// Purpose key of the percolation draw in [`marker_rng`].
-pub const PERCOLATION_STREAM: u64 = 2;
-
-/// A random stream for one marker at one step and for one purpose: ChaCha8 keyed by the 32
-/// bytes (seed, id, step, purpose). Distinct keys give independent streams, and the stream
-/// depends on nothing else (thread, order of the pass), so runs are reproducible on any
-/// number of threads.
-pub fn marker_rng(seed: u64, id: u64, step: u64, purpose: u64) -> ChaCha8Rng {
-    let mut key = [0u8; 32];
-    for (i, v) in [seed, id, step, purpose].iter().enumerate() {
-        key[8 * i..8 * i + 8].copy_from_slice(&v.to_le_bytes());
-    }
-    ChaCha8Rng::from_seed(key)
-}
 
 /// Weibull size s = β (−ln(1 − u))^(1/α) for u in [0, 1).
 #[inline]
@@ -367,6 +350,7 @@ mod tests {
             grid: &grid,
             ground: None,
             reach: crate::engine::markers::WallReach::default(),
+            seed: 0,
         };
         // Frustum (R = 10 > w = 2, plug radius 8). At a = 9 (annulus):
         // Δz = −3 × 2 / (π (100 + 80 + 64)) × (1 − (9 − 8)/2) = −6/766.5486 × 0.5
@@ -374,14 +358,14 @@ mod tests {
         // (At the disk's base, where the void entering is the whole Δv_i: the engine
         // interpolates Δv over the disk's height to the void leaving through its top, none
         // here.)
-        let st = field.step([9.0, 0.0, 0.0]);
+        let st = field.step([9.0, 0.0, 0.0], 0);
         assert!((st.dz + 0.003_913_65).abs() < 1e-8, "{}", st.dz);
         assert!((st.strain - 0.001_956_82).abs() < 1e-8, "{}", st.strain);
         assert!((st.work - st.strain * 83.5914).abs() < 1e-6);
         // Γ-weighted d̄ for percolation: d̄ of the one disk.
         assert!((st.dbar / st.strain - 0.2).abs() < 1e-12);
         // In the plug (a = 5) there is no shear.
-        assert_eq!(field.step([5.0, 0.0, 0.0]).strain, 0.0);
+        assert_eq!(field.step([5.0, 0.0, 0.0], 0).strain, 0.0);
     }
 
     #[test]
@@ -461,16 +445,5 @@ mod tests {
         assert!((v / var - 1.0).abs() < 0.025, "{v} vs {var}");
         // Hand value of the inverse CDF: u = 1 − e^−1 gives exactly β.
         assert!((weibull_size(shape, scale, 1.0 - (-1f64).exp()) - scale).abs() < 1e-15);
-    }
-
-    #[test]
-    fn marker_streams_are_distinct_and_reproducible() {
-        let a: u64 = marker_rng(1, 2, 3, 4).random();
-        let b: u64 = marker_rng(1, 2, 3, 4).random();
-        let c: u64 = marker_rng(1, 2, 4, 4).random();
-        let d: u64 = marker_rng(1, 3, 3, 4).random();
-        assert_eq!(a, b);
-        assert_ne!(a, c);
-        assert_ne!(a, d);
     }
 }

@@ -49,6 +49,7 @@ mod height_of_draw;
 pub mod imz;
 pub mod markers;
 pub mod plan;
+pub mod random;
 pub mod resolution;
 pub mod result;
 pub mod rilling;
@@ -360,6 +361,7 @@ impl<'a> Engine<'a> {
             grid: &grid,
             ground: Some((&self.scene.blocks, last)),
             reach: WallReach::new(&geoms, &self.scene.blocks),
+            seed: self.scenario.seed,
         })
     }
 
@@ -505,7 +507,8 @@ impl<'a> Engine<'a> {
         self.marker_steps += rows.len() as u64;
         let owned = self.window_motions(&active);
         let motion = level_motions(&self.imzs, &is_drawing, &owned);
-        let fields = level_fields(&geoms, &motion, &grids, (&self.scene.blocks, period));
+        let (ground, seed) = ((&self.scene.blocks, period), self.scenario.seed);
+        let fields = level_fields(&geoms, &motion, &grids, ground, seed);
         self.steps_done = u;
         self.trace.step(&fields[0], period);
         let perc = fines::Percolation {
@@ -660,7 +663,9 @@ impl<'a> Engine<'a> {
         let owned = self.window_motions(&active);
         let none = vec![false; self.imzs.len()];
         let motion = level_motions(&self.imzs, &none, &owned);
-        let fields = level_fields(&geoms, &motion, &grids, (&self.scene.blocks, period));
+        // A lagging marker did not step at update u, so (u, its id) keys no other choice.
+        let (ground, seed) = ((&self.scene.blocks, period), self.scenario.seed);
+        let fields = level_fields(&geoms, &motion, &grids, ground, seed);
         self.marker_steps += lagging.len() as u64;
         let drawn = markers::move_rows(
             &mut self.markers,
@@ -1205,6 +1210,7 @@ fn level_fields<'f>(
     motion: &'f [Vec<&'f [DiskMotion]>],
     grids: &'f [ImzGrid],
     ground: (&'f crate::model::BlockModel, i64),
+    seed: u64,
 ) -> Vec<MotionField<'f>> {
     let reach = WallReach::new(geoms, ground.0);
     (0..grids.len())
@@ -1214,6 +1220,7 @@ fn level_fields<'f>(
             grid: &grids[l],
             ground: Some(ground),
             reach: reach.clone(),
+            seed,
         })
         .collect()
 }

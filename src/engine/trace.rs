@@ -28,6 +28,10 @@ use serde::{Deserialize, Serialize};
 use super::markers::MotionField;
 use super::result::{MarkerState, TraceTable};
 
+/// Trace point k's id in the keys of its random choices ([`MotionField::step`]): k with the
+/// top bit set, apart from every marker's.
+const TRACE_IDS: u64 = 1 << 63;
+
 /// The trace points' state between steps, struct of arrays; row k is trace id k + 1.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct Trace {
@@ -111,7 +115,7 @@ impl Trace {
                 }
                 MarkerState::Moving => {}
             }
-            let s = field.step(p);
+            let s = field.step(p, TRACE_IDS | k as u64);
             self.pos[k] = [p[0] + s.dx, p[1] + s.dy, p[2] + s.dz];
             self.strain[k] += s.strain;
             self.work[k] += s.work;

@@ -43,8 +43,8 @@
 //!   ground) moves the top disk's markers down by it, so the surface subsides by the void
 //!   that left and an air gap opens above the markers, not inside them.
 //! - Transfer into the disk below: a marker that crosses a disk's base keeps its
-//!   streamtube (`transfer`); under overlap, each IMZ's transfer is applied at its share of
-//!   the marker's vertical move, on crossings decided by the summed move
+//!   streamtube (`transfer`); under overlap, it takes one IMZ's transfer, drawn with that
+//!   IMZ's share of its vertical move, on crossings decided by the summed move
 //!   ([`MotionField::step`]). Between two cones this is the summary's Δa′ = −(1 −
 //!   R_{i−1}/R_i) a_m and Δz′ = −p (R_i² − R_{i−1}²)/R_{i−1}², p the depth reached below the
 //!   disk base z_i (the summary's Δz′ with its Δz cancelled); between profiles of other
@@ -71,6 +71,9 @@
 //!   only where it is within their reach at its height ([`WallReach`]): the demo's IMZs
 //!   all reach the walls near the top, and visiting every wall's images wherever the
 //!   widest disk reached cost 1.21× the run against that. Nothing measurable at mine scale.
+//!   A move that would still carry a marker through a wall (an image's transfer, which
+//!   points beyond it) ends at its mirror inside: the image's move beyond the wall is the
+//!   mirror of the IMZ's own move of the marker's mirror.
 //! - Shear strain in the shear annulus: Γ = |Δz| / min(R, w); shear work Γ σ_n with the
 //!   Janssen σ_n = ρ_s (1 − n1) g R / (2 tan φ) (summary §6.3).
 //!
@@ -231,11 +234,12 @@ pub fn move_markers(
             mk.z.par_iter_mut(),
             mk.strain.par_iter_mut(),
             mk.work.par_iter_mut(),
+            mk.id.par_iter(),
         )
             .into_par_iter()
             .enumerate()
-            .filter_map(|(k, (x, y, z, g, w))| {
-                let s = field.step([*x, *y, *z]);
+            .filter_map(|(k, (x, y, z, g, w, &id))| {
+                let s = field.step([*x, *y, *z], id);
                 *x += s.dx;
                 *y += s.dy;
                 *z += s.dz;
@@ -248,7 +252,7 @@ pub fn move_markers(
     let steps: Vec<Step> = (0..mk.len())
         .into_par_iter()
         .map(|k| {
-            let mut s = field.step([mk.x[k], mk.y[k], mk.z[k]]);
+            let mut s = field.step([mk.x[k], mk.y[k], mk.z[k]], mk.id[k]);
             extra(mk, k, &mut s);
             s
         })
@@ -311,7 +315,7 @@ pub fn move_rows(
             .par_iter()
             .map(|&k| {
                 let k = k as usize;
-                let mut s = fields[0].step([mk.x[k], mk.y[k], mk.z[k]]);
+                let mut s = fields[0].step([mk.x[k], mk.y[k], mk.z[k]], mk.id[k]);
                 extra(mk, k, &mut s);
                 s
             })
@@ -319,6 +323,7 @@ pub fn move_rows(
         None => Vec::new(),
     };
     let (hooked, steps) = (extra.is_some(), &steps[..]);
+    let ids = &mk.id;
     let firsts: Vec<usize> = (0..chunks.len()).map(|c| c * chunk).collect();
     let drawn: Vec<Vec<(usize, u32)>> = (
         (chunks, spans.clone(), firsts),
@@ -339,7 +344,7 @@ pub fn move_rows(
                     steps[first + n]
                 } else {
                     let level = if cadence.is_some() { lv[i] } else { 0 };
-                    fields[level as usize].step([x[i], y[i], z[i]])
+                    fields[level as usize].step([x[i], y[i], z[i]], ids[k as usize])
                 };
                 x[i] += s.dx;
                 y[i] += s.dy;
