@@ -22,6 +22,11 @@
 //! Markers near a drawpoint keep level 0 and step every update, as before; markers are
 //! drawn from there, so the extraction tables keep the update interval's resolution.
 //!
+//! A window's step is split at the disk bases it reaches (`MotionField::step`): below a
+//! base the rest of the window moves the marker in the motion there, as the window's
+//! updates would have, where carrying the summed move on by one IMZ's transfer over-drew
+//! in the overlaps of IMZs, in proportion to the window's move.
+//!
 //! Between its steps a marker of level L lags its true position by at most one window's
 //! move (≤ `max_marker_move`). Whatever reads marker positions exactly (rilling, marker
 //! snapshots, the free surface, the end of the run) first brings every marker up to date:

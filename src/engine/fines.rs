@@ -257,6 +257,7 @@ mod tests {
             ground: None,
             reach: crate::engine::markers::WallReach::default(),
             seed: 0,
+            window: false,
         };
         let mut bm = crate::model::synthetic::UniformBox::castro_isolated()
             .scene()
@@ -331,6 +332,7 @@ mod tests {
             ground: None,
             reach: crate::engine::markers::WallReach::default(),
             seed: 0,
+            window: false,
         };
         let scene = crate::model::synthetic::UniformBox {
             extent: [10.0, 10.0, 6.0],

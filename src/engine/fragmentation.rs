@@ -351,6 +351,7 @@ mod tests {
             ground: None,
             reach: crate::engine::markers::WallReach::default(),
             seed: 0,
+            window: false,
         };
         // Frustum (R = 10 > w = 2, plug radius 8). At a = 9 (annulus):
         // Δz = −3 × 2 / (π (100 + 80 + 64)) × (1 − (9 − 8)/2) = −6/766.5486 × 0.5

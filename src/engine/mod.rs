@@ -362,6 +362,7 @@ impl<'a> Engine<'a> {
             ground: Some((&self.scene.blocks, last)),
             reach: WallReach::new(&geoms, &self.scene.blocks),
             seed: self.scenario.seed,
+            window: false,
         })
     }
 
@@ -1221,6 +1222,7 @@ fn level_fields<'f>(
             ground: Some(ground),
             reach: reach.clone(),
             seed,
+            window: l > 0,
         })
         .collect()
 }
