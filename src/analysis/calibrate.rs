@@ -65,6 +65,16 @@
 //! in quadrature to the statistical SE. It is a lower bound of the resolution's error (a
 //! run converged in resolution would move the factors further).
 //!
+//! **Lattice.** The markers sample the ground at their lattice's sites, and a fit made with
+//! one lattice leans on that sample's noise in the same way in every trial run (the same
+//! markers fall the same way), so it is biased by it, beyond what the residuals' scatter
+//! shows. The run at θ̂ on the twin lattice (below) measures it: the step
+//! −A⁻¹ Jᵀ (e_twin − e_fit) is how far the factors would move had the fit been made on the
+//! twin lattice, the difference of two equally noisy fits, so √2 times one fit's part.
+//! That over √2 is each factor's `se_lattice`, added in quadrature too. Without it, fits of
+//! three zones at once from a finer run's records at four lattice offsets missed the truth
+//! by up to 9 of the SEs reported (`docs::validation`).
+//!
 //! **Noise.** The model's own noise is the markers' sampling noise (`docs::performance`,
 //! "Sampling noise"). The run at θ̂ is made once more on the twin lattice, moved in plan by
 //! [`TWIN_OFFSET`](crate::model::scenario::TWIN_OFFSET): an equally good sample of the same
@@ -180,8 +190,12 @@ pub struct Fitted {
     pub se: f64,
     /// The part of `se` that the resolution gives: how far the factor would move had it
     /// been fitted at 2^(−1/2) times the marker spacing (zone factors; NaN for the global
-    /// ones). `se` is the statistical SE and this in quadrature.
+    /// ones). Part of `se` in quadrature.
     pub se_resolution: f64,
+    /// The part of `se` that the markers' sampling gives: how far the factor moves between
+    /// fits on two equally good marker lattices, over √2 (zone factors; NaN for the global
+    /// ones). `se` is the statistical SE, this and `se_resolution` in quadrature.
+    pub se_lattice: f64,
     /// 95% interval: θ̂ ± 1.96 SE and the profile interval, whichever reaches further.
     pub ci95: [f64; 2],
     /// Rows the parameter is judged on.
@@ -711,9 +725,8 @@ pub fn calibrate(
     let records_noise = (rmse(after.all).powi(2) - model_noise.powi(2))
         .max(0.0)
         .sqrt();
-    let shift = joint_fit
-        .as_ref()
-        .and_then(|f| f.resolution_shift(after, finer));
+    let shift = joint_fit.as_ref().and_then(|f| f.shift(after, finer));
+    let lattice = joint_fit.as_ref().and_then(|f| f.shift(after, twin));
     let cov = joint_fit.as_ref().and_then(|f| f.covariance(after));
 
     let mut parameters = Vec::new();
@@ -721,7 +734,7 @@ pub fn calibrate(
         prof.sort_by(|a, b| a.0.total_cmp(&b.0));
         prof.dedup_by(|a, b| (a.0 - b.0).abs() < 1e-12);
         let zone = name.strip_prefix("frag_factor.");
-        let (start_value, value, se, se_resolution, ci95) = match zone {
+        let (start_value, value, se, se_resolution, se_lattice, ci95) = match zone {
             Some(z) => {
                 let fit = joint_fit.as_ref().expect("zones are fitted jointly");
                 let k = cfg
@@ -731,13 +744,18 @@ pub fn calibrate(
                     .expect("a fitted zone");
                 let value = fit.theta[k];
                 let res = shift.as_ref().map_or(f64::NAN, |d| d[k].abs());
+                let lat = lattice
+                    .as_ref()
+                    .map_or(f64::NAN, |d| d[k].abs() / 2f64.sqrt());
                 let stat = cov.as_ref().map_or(f64::NAN, |c| c[(k, k)].sqrt());
-                let se = stat.hypot(if res.is_finite() { res } else { 0.0 });
+                let finite = |x: f64| if x.is_finite() { x } else { 0.0 };
+                let se = stat.hypot(finite(res)).hypot(finite(lat));
                 (
                     start_of(z),
                     value,
                     se,
                     res,
+                    lat,
                     [value - 1.96 * se, value + 1.96 * se],
                 )
             }
@@ -749,7 +767,7 @@ pub fn calibrate(
                     (start.friction_factor, &mut cal.friction_factor)
                 };
                 *slot.1 = value;
-                (slot.0, value, se, f64::NAN, ci95)
+                (slot.0, value, se, f64::NAN, f64::NAN, ci95)
             }
         };
         let rows = zone.and_then(|z| zone_rows.get(z).cloned().flatten());
@@ -759,6 +777,7 @@ pub fn calibrate(
             value,
             se,
             se_resolution,
+            se_lattice,
             ci95,
             n: prof.first().map_or(0, |q| q.1 .1),
             profile: prof.iter().map(|&(t, e)| [t, rmse(e)]).collect(),
@@ -866,15 +885,16 @@ impl Joint {
         Some(c)
     }
 
-    /// How far the factors would move had the fit been made at the finer markers of the run
-    /// `finer`: the Gauss–Newton step −A⁻¹ Jᵀ (e_finer − e_fit) of the change in the
-    /// predictions, on this fit's Jacobian (module docs, "Resolution").
-    fn resolution_shift(&self, fit: &Eval, finer: &Eval) -> Option<DVector<f64>> {
+    /// How far the factors would move had the fit been made with the markers of the run
+    /// `other` (a finer run, or the twin lattice's): the Gauss–Newton step
+    /// −A⁻¹ Jᵀ (e_other − e_fit) of the change in the predictions, on this fit's Jacobian
+    /// (module docs, "Resolution" and "Lattice").
+    fn shift(&self, fit: &Eval, other: &Eval) -> Option<DVector<f64>> {
         let d = DVector::from_iterator(
             self.keys.len(),
             self.keys
                 .iter()
-                .map(|k| match (finer.rows.get(k), fit.rows.get(k)) {
+                .map(|k| match (other.rows.get(k), fit.rows.get(k)) {
                     (Some(a), Some(b)) => a - b,
                     _ => 0.0,
                 }),

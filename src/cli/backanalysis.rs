@@ -303,7 +303,10 @@ pub(super) fn calibrate_cmd(a: CalibrateArgs) -> Result<ExitCode> {
     )?;
     for f in &report.parameters {
         let res = if f.se_resolution.is_finite() {
-            format!(", of which resolution {:.3}", f.se_resolution)
+            format!(
+                ", of which resolution {:.3} and marker sampling {:.3}",
+                f.se_resolution, f.se_lattice
+            )
         } else {
             String::new()
         };
@@ -334,7 +337,7 @@ pub(super) fn calibrate_cmd(a: CalibrateArgs) -> Result<ExitCode> {
         );
     }
     for f in &report.parameters {
-        let stat = (f.se * f.se - f.se_resolution * f.se_resolution)
+        let stat = (f.se * f.se - f.se_resolution.powi(2) - f.se_lattice.powi(2))
             .max(0.0)
             .sqrt();
         if f.se_resolution > stat {

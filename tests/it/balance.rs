@@ -468,7 +468,7 @@ fn unequal_draw_from_overlapping_imzs_keeps_each_drawpoints_balance() {
 /// Nine drawpoints of the demo's panel (its west interior, 13.6–17.3 m apart, whose IMZs
 /// overlap from their lower disks up), drawn evenly, 2 kt a period each for the 24
 /// periods (48 kt, short of exhausting their columns): each draws its schedule in markers
-/// to 2%. Measured 0.991–1.011 (standard deviation 0.73%). While a marker under two IMZs
+/// to 2%. Measured 0.987–1.008 (standard deviation 0.59%). While a marker under two IMZs
 /// took each one's transfer at its share, the lenses where the lower disks overlap kept
 /// markers the transfers could not carry into either disk below: 6 of the 9 were within
 /// 2%, 0.956–1.007 (`markers::MotionField::step`).
@@ -498,11 +498,11 @@ fn a_panel_drawn_evenly_draws_each_drawpoints_schedule_in_markers() {
 
 /// A daily schedule on mine-scale blocks (9 drawpoints 15 m apart on 15 m blocks, 150 t a
 /// day each for 300 days, at the automatic resolution): markers of 96 t cross the opening a
-/// layer of four at a time, so 1183 of the 2700 drawpoint-days draw none. Every day is
+/// layer of four at a time, so 1212 of the 2700 drawpoint-days draw none. Every day is
 /// credited from its drawpoint's stream (`engine::crediting`): every drawpoint-day has a
 /// grade, every day of a flowing drawpoint its 150 t. Under the bounded per-period
 /// correction, 1450 of the 2700 drawpoint-days had no grade and 1702 were short. No day is
-/// short: each drawpoint's markers weigh 0.970–1.030 of its schedule (1.005 in all). While
+/// short: each drawpoint's markers weigh 0.973–1.024 of its schedule (1.001 in all). While
 /// a marker under two IMZs took each one's transfer at its share, the central drawpoint's
 /// markers weighed 0.77 of its schedule (the markers the averaged transfers stranded
 /// between the IMZs' lower disks, `markers::MotionField::step`) and it was short 66 days;
@@ -627,15 +627,16 @@ fn markers_weigh_the_ground_they_stand_for_whatever_the_block_boundaries() {
 /// markers drawn weigh what the schedule asks, without a bias and without a trend. The
 /// drawpoints' median of credited over marker tonnes lies within 1 ± 0.03 over the run and
 /// over each half of their tonnes (the run's own warning rule), and every drawpoint that is
-/// never short draws its schedule in markers to 4% (22 of 32: the southeast corner's are
-/// short by design, `model::demo`). The issue asks 2%: 14 of the 22 are within it and 18
-/// within 3%; the contact drawpoints beside the exhausted and blocked southeast (D02-04,
-/// D02-05, D03-05) and D03-02 draw 1.033–1.037, over-drawing from period 11 on, which an
-/// evenly drawn panel does not (`a_panel_drawn_evenly_draws_each_drawpoints_schedule_in_markers`;
-/// `docs::validation`). While the transfers under overlap were averaged, markers stranded
-/// between the IMZs' lower disks offset that over-draw (median 0.988, 16 of 21 within 2%,
-/// all within 3%). (Without the corners' double images the two corner drawpoints drew
-/// 0.971.)
+/// never short draws its schedule in markers to 3% (22 of 32: the southeast corner's are
+/// short by design, `model::demo`). The issue asks 2%: 17 of the 22 are within it, and at
+/// least 16 must be (a drawpoint's ratio moves by 0.44%, median standard deviation, with
+/// the lattice's phase alone, `docs::performance`, "Sampling noise", so one near the line
+/// may cross it). Two fixes made this: a marker under several IMZs takes one IMZ's
+/// transfer (averaged transfers stranded markers between the IMZs' lower disks, median
+/// 0.988), and a cadence window's step is split at the bases it crosses (in one piece the
+/// windows over-drew in the IMZs' overlaps: median 1.010, 14 within 2%, 18 within 3%;
+/// `markers::MotionField::step`). (Without the corners' double images the two corner
+/// drawpoints drew 0.971.)
 #[test]
 fn the_demo_draws_its_schedule_in_markers_over_the_whole_draw() {
     use caveflow::model::demo::{henderson, scenario, DemoScale};
@@ -673,6 +674,6 @@ fn the_demo_draws_its_schedule_in_markers_over_the_whole_draw() {
         .iter()
         .any(|w| w.rule == WarningRule::MassBalance));
     assert!(ratios.len() >= 20, "{} never short", ratios.len());
-    assert_eq!(within(0.04), ratios.len(), "{ratios:?}");
-    assert!(within(0.03) >= 18 && within(0.02) >= 14, "{ratios:?}");
+    assert_eq!(within(0.03), ratios.len(), "{ratios:?}");
+    assert!(within(0.02) >= 16, "{ratios:?}");
 }
