@@ -425,6 +425,44 @@ fn parquet_type_problems() {
     expect(&p, "bad.parquet", None, None, "unreadable");
 }
 
+/// Parquet as other tools write it: pandas, pyarrow, DuckDB, R's arrow and Spark compress
+/// with Snappy by default, some with gzip, polars and caveflow with zstd. Each reads the
+/// same table (a build without a codec refused the file as unreadable).
+#[test]
+fn parquet_reads_every_usual_compression() {
+    use parquet::arrow::ArrowWriter;
+    use parquet::basic::{Compression, GzipLevel, ZstdLevel};
+    use parquet::file::properties::WriterProperties;
+    let dir = TempDir::new().unwrap();
+    let batch = arrow::record_batch::RecordBatch::try_from_iter([
+        (
+            "period",
+            Arc::new(Int64Array::from(vec![1, 2, 3])) as ArrayRef,
+        ),
+        ("days", Arc::new(Float64Array::from(vec![30.0, 31.0, 28.5]))),
+    ])
+    .unwrap();
+    for (name, c) in [
+        ("snappy", Compression::SNAPPY),
+        ("gzip", Compression::GZIP(GzipLevel::default())),
+        ("zstd", Compression::ZSTD(ZstdLevel::default())),
+        ("none", Compression::UNCOMPRESSED),
+    ] {
+        let path = dir.path().join(format!("periods_{name}.parquet"));
+        let props = WriterProperties::builder().set_compression(c).build();
+        let mut w = ArrowWriter::try_new(
+            fs::File::create(&path).unwrap(),
+            batch.schema(),
+            Some(props),
+        )
+        .unwrap();
+        w.write(&batch).unwrap();
+        w.close().unwrap();
+        let t = read_table(&path, &PERIODS).unwrap_or_else(|p| panic!("{name}: {p}"));
+        assert_eq!(t.f64("days").unwrap(), [30.0, 31.0, 28.5], "{name}");
+    }
+}
+
 #[test]
 fn massflow_block_model_with_weibull_and_grades() {
     let t = read_table(&data("massflow/blocks.csv"), &BLOCK_MODEL).unwrap();
