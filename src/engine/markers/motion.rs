@@ -381,8 +381,9 @@ impl MotionField<'_> {
             ..Default::default()
         };
         let (mut q, mut left) = (p, 1.0);
-        for _ in 0..MAX_PARTS {
-            let (st, used) = self.part(q, id, left, true);
+        for n in 1..=MAX_PARTS {
+            // The last part, if a move reaches that far, takes the rest in one piece.
+            let (st, used) = self.part(q, id, left, n < MAX_PARTS);
             q = [q[0] + st.dx, q[1] + st.dy, q[2] + st.dz];
             sum.strain += st.strain;
             sum.work += st.work;
@@ -667,7 +668,8 @@ impl MotionField<'_> {
     }
 }
 
-/// Most parts a window's step is split into (bases it crosses, plus one).
+/// Most parts a window's step is split into (bases it crosses, plus one). A step within
+/// the default `max_marker_move` (at most half a disk) crosses one base at most.
 const MAX_PARTS: usize = 8;
 
 /// How far below a disk base a split step leaves a marker, relative to the base's height.
