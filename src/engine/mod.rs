@@ -664,7 +664,7 @@ impl<'a> Engine<'a> {
         let owned = self.window_motions(&active);
         let none = vec![false; self.imzs.len()];
         let motion = level_motions(&self.imzs, &none, &owned);
-        // A lagging marker did not step at update u, so (u, its id) keys no other choice.
+        // A transfer's choice is keyed by the marker and the base, as in any other step.
         let (ground, seed) = ((&self.scene.blocks, period), self.scenario.seed);
         let fields = level_fields(&geoms, &motion, &grids, ground, seed);
         self.marker_steps += lagging.len() as u64;

@@ -693,6 +693,35 @@ mod tests {
     use super::*;
     use std::f64::consts::PI;
 
+    /// Disks of `radii` that did not widen, in open ground, with shear band `w`, disk `i`
+    /// passing the void `void(i)` = (Δv_i, Δv_out), prepared for disks of thickness `h`.
+    fn still_disks(
+        radii: &[f64],
+        void: impl Fn(usize) -> (f64, f64),
+        w: f64,
+        h: f64,
+    ) -> Vec<DiskMotion> {
+        let mut m: Vec<DiskMotion> = radii
+            .iter()
+            .enumerate()
+            .map(|(i, &r)| {
+                let (dv, dv_out) = void(i);
+                DiskMotion {
+                    r,
+                    r_old: r,
+                    dv,
+                    dv_out,
+                    w,
+                    area_frac: 1.0,
+                    flow_frac: 1.0,
+                    ..Default::default()
+                }
+            })
+            .collect();
+        prepare(&mut m, h);
+        m
+    }
+
     /// ∫ Δz dA over the disk equals −Δv for both profiles (volume continuity), to the
     /// quadrature error of 20 000 rings (< 1e-6 relative).
     #[test]
@@ -890,23 +919,9 @@ mod tests {
             })
             .collect();
         let dv_in = [0.45, 0.4, 0.35];
-        let disks = |n: f64| -> Vec<DiskMotion> {
-            let mut m: Vec<DiskMotion> = [2.0, 3.0, 3.0]
-                .iter()
-                .enumerate()
-                .map(|(i, &r)| DiskMotion {
-                    r,
-                    r_old: r,
-                    dv: n * dv_in[i],
-                    dv_out: n * dv_in.get(i + 1).copied().unwrap_or(0.3),
-                    w: 1.0,
-                    area_frac: 1.0,
-                    flow_frac: 1.0,
-                    ..Default::default()
-                })
-                .collect();
-            prepare(&mut m, 1.0);
-            m
+        let disks = |n: f64| {
+            let void = |i: usize| (n * dv_in[i], n * dv_in.get(i + 1).copied().unwrap_or(0.3));
+            still_disks(&[2.0, 3.0, 3.0], void, 1.0, 1.0)
         };
         let (update, window) = (disks(1.0), disks(16.0));
         let grid = ImzGrid::build(&geoms, &[0, 1], [-4.0, -4.0], [13.0, 8.0], 1.0);
@@ -984,20 +999,7 @@ mod tests {
             h: 1.0,
             radius: vec![2.0, 3.0, 3.0],
         };
-        let mut motion: Vec<DiskMotion> = [2.0, 3.0, 3.0]
-            .iter()
-            .map(|&r| DiskMotion {
-                r,
-                r_old: r,
-                dv: 0.6,
-                dv_out: 0.5,
-                w: 1.0,
-                area_frac: 1.0,
-                flow_frac: 1.0,
-                ..Default::default()
-            })
-            .collect();
-        prepare(&mut motion, 1.0);
+        let motion = still_disks(&[2.0, 3.0, 3.0], |_| (0.6, 0.5), 1.0, 1.0);
         let geoms = vec![geom(0.0), geom(5.0)];
         let grid = ImzGrid::build(&geoms, &[0, 1], [-4.0, -4.0], [13.0, 8.0], 1.0);
         let motions: Vec<&[DiskMotion]> = vec![&motion[..], &motion[..]];
@@ -1063,20 +1065,7 @@ mod tests {
         let bm = &scene.blocks;
         let [wx, _, _] = bm.origin;
         let z0 = bm.origin[2];
-        let mut motion: Vec<DiskMotion> = [0.2, 0.3, 0.3]
-            .iter()
-            .map(|&r| DiskMotion {
-                r,
-                r_old: r,
-                dv: 0.004,
-                dv_out: 0.003,
-                w: 0.05,
-                area_frac: 1.0,
-                flow_frac: 1.0,
-                ..Default::default()
-            })
-            .collect();
-        prepare(&mut motion, 0.1);
+        let motion = still_disks(&[0.2, 0.3, 0.3], |_| (0.004, 0.003), 0.05, 0.1);
         let geoms = vec![ImzGeom {
             x: wx + 0.1,
             y: 0.0,
