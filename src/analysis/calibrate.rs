@@ -68,27 +68,29 @@
 //! **Lattice.** The markers sample the ground at their lattice's sites, and a fit made with
 //! one lattice leans on that sample's noise in the same way in every trial run (the same
 //! markers fall the same way), so it is biased by it, beyond what the residuals' scatter
-//! shows. The run at θ̂ on the twin lattice (below) measures it: the step
-//! −A⁻¹ Jᵀ (e_twin − e_fit) is how far the factors would move had the fit been made on the
+//! shows. The runs at θ̂ on three twin lattices (below) measure it: the step
+//! −A⁻¹ Jᵀ (e_twin − e_fit) is how far the factors would move had the fit been made on a
 //! twin lattice, the difference of two equally noisy fits, so √2 times one fit's part.
-//! That over √2 is each factor's `se_lattice`, added in quadrature too. Without it, fits of
-//! three zones at once from a finer run's records at four lattice offsets missed the truth
-//! by up to 9 of the SEs reported (`docs::validation`).
+//! The RMS of the three steps over √2 is each factor's `se_lattice`, added in quadrature
+//! too. Without it, fits of three zones at once from a finer run's records at four lattice
+//! offsets missed the truth by up to 9 of the SEs reported (`docs::validation`). With one
+//! twin only, the step is one draw of a difference, often far below the spread it stands
+//! for: on the test with records from a finer run it gave contact 0.001 and the fit
+//! missed by 2.8 SE; three twins gave 0.029.
 //!
 //! **Noise.** The model's own noise is the markers' sampling noise (`docs::performance`,
-//! "Sampling noise"). The run at θ̂ is made once more on the twin lattice, moved in plan by
-//! [`TWIN_OFFSET`](crate::model::scenario::TWIN_OFFSET): an equally good sample of the same
-//! ground, √2 times the noise away from the first, so the noise is RMS(e_twin − e_fit)/√2
-//! per row. The records' noise is what is left beside it, √(RMSE² − model²): when the
-//! model's noise is not below the records', the fit cannot resolve what the records say,
-//! and `calibrate` says so. On the three-zone tests the records' noise found is within 4%
-//! of the noise they were given. Measured with the finer run instead, RMS(e_finer −
-//! e_fit)/√2, the model's noise came out 2–15% low (the finer run's own noise is smaller,
-//! and two unequal noises are not √2 one of them apart), and the records' 8% high when
-//! they came from a finer run. One pair is one sample of the noise, and a rough one: a
-//! drawpoint's errors are correlated over its periods, so on the whole demo the pairs of
-//! five lattice offsets lie 1.3–1.9% apart over √2 (`docs::performance`, "Sampling
-//! noise").
+//! "Sampling noise"). The run at θ̂ is made once more on each twin lattice, moved in plan by
+//! k × [`TWIN_OFFSET`](crate::model::scenario::TWIN_OFFSET), k = 1, 2, 3: each an equally
+//! good sample of the same ground, √2 times the noise away from the first, so the noise is
+//! the RMS of e_twin − e_fit over the rows of all three, over √2. The records' noise is
+//! what is left beside it, √(RMSE² − model²): when the model's noise is not below the
+//! records', the fit cannot resolve what the records say, and `calibrate` says so.
+//! Measured with the finer run instead, RMS(e_finer − e_fit)/√2, the model's noise came
+//! out 2–15% low (the finer run's own noise is smaller, and two unequal noises are not √2
+//! one of them apart), and the records' 8% high when they came from a finer run. A
+//! drawpoint's errors are correlated over its periods, so one pair is a rough sample of
+//! the noise: on the whole demo the pairs of five lattice offsets lie 1.3–1.9% apart over
+//! √2 (`docs::performance`, "Sampling noise").
 //!
 //! **Globals.** Near its minimum each profile is a parabola, S(θ) ≈ S_min + a (θ − θ̂)²,
 //! fitted by least squares to the evaluated points within 30% of the best one. As in
@@ -222,8 +224,8 @@ pub struct CalibrationReport {
     /// Overall RMSE after (at the fitted values).
     pub rmse_after: f64,
     /// The model's own noise: the markers' sampling noise of a row's predicted grade, the
-    /// RMS change between the fit's run and its twin (the same run on another lattice
-    /// offset) over √2.
+    /// RMS change between the fit's run and its twins (the same run on other lattice
+    /// offsets) over √2.
     pub model_noise: f64,
     /// The records' noise left when the model's is taken out of the RMSE after:
     /// √(RMSE² − model_noise²).
@@ -275,17 +277,17 @@ fn rmse((s, n): (f64, usize)) -> f64 {
 
 /// One engine run of a calibration: the calibration tried, at h and the marker spacing
 /// `finer` times the ones the scene resolves to (1: as resolved; the increment and
-/// `max_marker_move` as resolved), on the scenario's marker lattice or on its twin.
+/// `max_marker_move` as resolved), on the scenario's marker lattice or on one of its twins.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Trial {
     /// The calibration tried.
     pub calibration: Calibration,
     /// h and the marker spacing, as multiples of the resolved ones.
     pub finer: f64,
-    /// Whether the run's lattice is the scenario's twin
-    /// ([`Resolution::twin_offset`](crate::model::scenario::Resolution::twin_offset)):
+    /// The run's marker lattice: 0 the scenario's, k ≥ 1 its k-th twin
+    /// ([`Resolution::nth_twin_offset`](crate::model::scenario::Resolution::nth_twin_offset)):
     /// another sample of the same ground, to measure the markers' sampling noise.
-    pub twin: bool,
+    pub lattice: usize,
 }
 
 /// Where a calibration's engine runs are made. `predict` makes one batch (the runs of one
@@ -338,12 +340,7 @@ impl Problem<'_> {
 
     /// The marker lattice's plan offset of `t`'s run (`resolution.lattice_offset`).
     pub fn lattice_offset(&self, t: &Trial) -> [f64; 2] {
-        let r = &self.scenario.resolution;
-        if t.twin {
-            r.twin_offset()
-        } else {
-            r.lattice_offset
-        }
+        self.scenario.resolution.nth_twin_offset(t.lattice)
     }
 
     /// The resolution of `t`'s run: h and the marker spacing `t.finer` times the ones its
@@ -430,7 +427,7 @@ impl Problem<'_> {
             .map(|c| Trial {
                 calibration: c.clone(),
                 finer: 1.0,
-                twin: false,
+                lattice: 0,
             })
             .collect();
         self.eval_trials(&trials)
@@ -696,26 +693,35 @@ pub fn calibrate(
         profiles.insert(name.to_string(), prof);
     }
 
-    // 4. The fitted values, run once more, on the twin lattice and at finer markers (module
-    // docs, "Noise" and "Resolution").
-    let finals = p.eval_trials(&[(1.0, false), (1.0, true), (CHECK_RESOLUTION, false)].map(
-        |(finer, twin)| Trial {
+    // 4. The fitted values, run once more on each of TWINS twin lattices and at finer
+    // markers (module docs, "Noise", "Lattice" and "Resolution").
+    let trials: Vec<Trial> = std::iter::once((1.0, 0))
+        .chain((1..=TWINS).map(|k| (1.0, k)))
+        .chain(std::iter::once((CHECK_RESOLUTION, 0)))
+        .map(|(finer, lattice)| Trial {
             calibration: cal.clone(),
             finer,
-            twin,
-        },
-    ))?;
+            lattice,
+        })
+        .collect();
+    let finals = p.eval_trials(&trials)?;
     tick(finals.len(), &mut runs);
-    let (after, twin, finer) = (&finals[0], &finals[1], &finals[2]);
+    let (after, twins, finer) = (&finals[0], &finals[1..=TWINS], &finals[TWINS + 1]);
     if after.all.1 == 0 {
         return Err(CalibrateError::Input(
             "no record matched a prediction: check drawpoint names and periods".into(),
         ));
     }
-    let diffs: Vec<f64> = after
-        .rows
+    // Each twin is √2 times the noise away from the fit's run: the noise is the RMS of
+    // their differences over all twins, over √2.
+    let diffs: Vec<f64> = twins
         .iter()
-        .filter_map(|(k, e)| twin.rows.get(k).map(|f| e - f))
+        .flat_map(|twin| {
+            after
+                .rows
+                .iter()
+                .filter_map(|(k, e)| twin.rows.get(k).map(|f| e - f))
+        })
         .collect();
     let model_noise = if diffs.is_empty() {
         f64::NAN
@@ -726,7 +732,19 @@ pub fn calibrate(
         .max(0.0)
         .sqrt();
     let shift = joint_fit.as_ref().and_then(|f| f.shift(after, finer));
-    let lattice = joint_fit.as_ref().and_then(|f| f.shift(after, twin));
+    // Per zone, the RMS over the twins of the shift to each, over √2.
+    let lattice = joint_fit.as_ref().and_then(|f| {
+        let shifts: Vec<DVector<f64>> = twins.iter().filter_map(|t| f.shift(after, t)).collect();
+        (!shifts.is_empty()).then(|| {
+            let n = shifts.len() as f64;
+            shifts
+                .iter()
+                .fold(DVector::zeros(shifts[0].len()), |acc, d| {
+                    acc + d.component_mul(d)
+                })
+                .map(|ms| (ms / (2.0 * n)).sqrt())
+        })
+    });
     let cov = joint_fit.as_ref().and_then(|f| f.covariance(after));
 
     let mut parameters = Vec::new();
@@ -744,9 +762,7 @@ pub fn calibrate(
                     .expect("a fitted zone");
                 let value = fit.theta[k];
                 let res = shift.as_ref().map_or(f64::NAN, |d| d[k].abs());
-                let lat = lattice
-                    .as_ref()
-                    .map_or(f64::NAN, |d| d[k].abs() / 2f64.sqrt());
+                let lat = lattice.as_ref().map_or(f64::NAN, |d| d[k]);
                 let stat = cov.as_ref().map_or(f64::NAN, |c| c[(k, k)].sqrt());
                 let finite = |x: f64| if x.is_finite() { x } else { 0.0 };
                 let se = stat.hypot(finite(res)).hypot(finite(lat));
@@ -847,6 +863,11 @@ const CONVERGED: f64 = 0.01;
 /// h and the marker spacing, as multiples of the fit's, of the run that checks the
 /// resolution: 2^(−1/2), 2.8 times the markers (module docs, "Resolution").
 const CHECK_RESOLUTION: f64 = std::f64::consts::FRAC_1_SQRT_2;
+
+/// Twin lattices the fitted values are run on, to measure the markers' sampling noise and
+/// the fit's lean on its lattice (module docs, "Lattice" and "Noise"). One pair is one
+/// draw of a difference: its size is often far below the spread it stands for.
+const TWINS: usize = 3;
 
 /// The joint fit of every zone's factor (module docs, step 2).
 struct Joint {

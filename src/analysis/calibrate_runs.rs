@@ -229,7 +229,7 @@ fn case(p: &Problem, t: &Trial) -> Result<(String, Vec<String>), CalibrateError>
             sets.push(format!("resolution.{key}={}", exact(v)));
         }
     }
-    if t.twin {
+    if t.lattice > 0 {
         let [x, y] = p.lattice_offset(t);
         sets.push(format!(
             "resolution.lattice_offset=[{}, {}]",

@@ -189,13 +189,17 @@ impl<'a> Engine<'a> {
         let unit_mass = lattice.unit_masses(bm);
         let max = bm.max_corner();
         let diag = ((max[0] - bm.origin[0]).powi(2) + (max[1] - bm.origin[1]).powi(2)).sqrt();
+        // The IMZs sample the ground around them at the marker spacing, but never finer
+        // than half their disk thickness (`engine::imz`): markers finer than that sample
+        // the grades better and leave the IMZs' geometry alone.
+        let ground = res.marker_spacing.max(0.5 * res.layer_thickness);
         let params = ImzParams {
             q: scenario.flow.q,
             shear_band_factor: scenario.flow.shear_band_factor,
             min_jump: scenario.flow.min_porosity_jump,
-            resample: 0.5 * res.marker_spacing,
-            redilate: 0.05 * res.marker_spacing,
-            perimeter_spacing: res.marker_spacing,
+            resample: 0.5 * ground,
+            redilate: 0.05 * ground,
+            perimeter_spacing: ground,
             r_cap: diag,
         };
         let dp = &scene.drawpoints;

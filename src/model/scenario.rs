@@ -93,8 +93,15 @@ impl Resolution {
     /// The lattice offset of this resolution's twin: moved by [`TWIN_OFFSET`], wrapped
     /// into [−0.5, 0.5).
     pub fn twin_offset(&self) -> [f64; 2] {
+        self.nth_twin_offset(1)
+    }
+
+    /// The lattice offset of this resolution's k-th twin: moved by k × [`TWIN_OFFSET`],
+    /// wrapped into [−0.5, 0.5) (k = 0 is its own lattice; the first three twins lie at
+    /// (½, ¼), (0, ½) and (½, ¾) spacings from it, each another sample of the ground).
+    pub fn nth_twin_offset(&self, k: usize) -> [f64; 2] {
         let o = self.lattice_offset;
-        [0, 1].map(|a| (o[a] + TWIN_OFFSET[a] + 0.5).rem_euclid(1.0) - 0.5)
+        [0, 1].map(|a| (o[a] + k as f64 * TWIN_OFFSET[a] + 0.5).rem_euclid(1.0) - 0.5)
     }
 }
 

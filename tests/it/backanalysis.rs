@@ -236,9 +236,9 @@ fn calibrate_fits_n1_and_friction_and_writes_a_scenario_that_loads() {
         assert_eq!(f.profile.len(), 3, "{f:?}");
         assert!((0.95..=1.05).contains(&f.value), "{f:?}");
     }
-    // 1 before + 3 + 3 + 3 after (the fitted values, on the twin lattice, and the
+    // 1 before + 3 + 3 + 5 after (the fitted values, on the three twin lattices, and the
     // resolution check).
-    assert_eq!(report.runs, 10);
+    assert_eq!(report.runs, 12);
     let dir = tempfile::tempdir().unwrap();
     caveflow::analysis::calibrate::write_calibration(dir.path(), &report, &sc).unwrap();
     let back = Scenario::load(&dir.path().join("calibrated.toml"), &[]).unwrap();

@@ -5,7 +5,8 @@
 use std::f64::consts::PI;
 
 use super::{
-    ImzGeom, ImzGrid, AREA_RINGS, MAX_DILATION_POINTS, PERIMETER_POINTS, SHAPE_MODES, UNIT_CIRCLE,
+    ImzGeom, ImzGrid, ImzParams, AREA_RINGS, MAX_DILATION_POINTS, PERIMETER_POINTS, SHAPE_MODES,
+    UNIT_CIRCLE,
 };
 use crate::model::BlockModel;
 
@@ -123,7 +124,7 @@ impl Ground<'_> {
     /// Stagnant properties of a disk of IMZ `me` at radius `radius` and mid-height `z`:
     /// the mean of 24 equally spaced perimeter points, and their dilation state
     /// ([`Ground::dilation`]).
-    pub fn stagnant(&self, me: usize, [x, y, z]: [f64; 3], radius: f64, spacing: f64) -> Stagnant {
+    pub fn stagnant(&self, me: usize, [x, y, z]: [f64; 3], radius: f64, p: &ImzParams) -> Stagnant {
         let mut s = Stagnant {
             sampled_at: radius,
             ..Default::default()
@@ -151,7 +152,7 @@ impl Ground<'_> {
         }
         s.flow_frac = n as f64 / PERIMETER_POINTS as f64;
         s.area_frac = self.area_fraction(x, y, z, radius);
-        self.dilation(me, [x, y, z], radius, spacing, &mut s);
+        self.dilation(me, [x, y, z], radius, p, &mut s);
         s
     }
 
@@ -160,14 +161,19 @@ impl Ground<'_> {
     /// porosity `n0` and the ring's dilation `shape` from it, keeping the block properties
     /// sampled before. Only the IMZ's own radius and its neighbours' growth change this, so
     /// it is resampled more often than the block properties.
+    ///
+    /// A point whose block's own jump n1 − n0 is below `p.min_jump` (`flow.min_porosity_jump`)
+    /// counts as dilated too, so the mean is 0 exactly when no sampled point is stagnant
+    /// ground: only then does the disk widen at no cost (`Imz::usable_jump`).
     pub fn dilation(
         &self,
         me: usize,
         [x, y, z]: [f64; 3],
         radius: f64,
-        spacing: f64,
+        p: &ImzParams,
         s: &mut Stagnant,
     ) {
+        let (spacing, min_jump) = (p.perimeter_spacing, p.min_jump);
         // Points at most `spacing` apart (so that a stagnant gap between a neighbour's
         // dilated ground and the next is seen once it is that wide), each with the jump of
         // its own block. Borrowing the jump of the nearest of the 24 block samples instead
@@ -197,11 +203,12 @@ impl Ground<'_> {
                 continue;
             };
             let pj = bm.n1[b] - bm.n0[b];
-            let dilated = self
-                .grid
-                .at(p[0], p[1])
-                .iter()
-                .any(|&e| e as usize != me && self.geoms[e as usize].contains(p));
+            let dilated = pj < min_jump
+                || self
+                    .grid
+                    .at(p[0], p[1])
+                    .iter()
+                    .any(|&e| e as usize != me && self.geoms[e as usize].contains(p));
             let j = if dilated { 0.0 } else { pj };
             sum += j;
             n += 1;
