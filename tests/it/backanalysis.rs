@@ -380,14 +380,14 @@ fn calibrate_recovers_three_zones_moved_at_once() {
 
 /// The same truth, records from a run at half the fit's marker spacing (8 times the
 /// markers): the fit must absorb what its own resolution gets wrong, and its SE must say
-/// how much. Measured: Urad 0.762 ± 0.016, Primos 1.220 ± 0.055, contact 1.110 ± 0.077 (of
-/// which the resolution check's shift 0.002, 0.029 and 0.036, the twin lattice's 0.009,
-/// 0.025 and 0.059); overall RMSE 0.0171% → 0.0148%; the model's noise 0.0076%, the
-/// records' 0.0127% (0.0124% added); 40 runs. Without the twin lattice's part of the SE
-/// contact missed by 2.2 SE. This holds on the test's lattice and at (0.2, 0.1) only: with
-/// the records' and the fit's lattices moved to (−0.3, 0.2) and (0.1, −0.4), Primos misses
-/// by 6.5 and 5.7 SE and contact by 4.3 and 3.0 (`docs::validation`, "Back-analysis"), so
-/// the recovery from a finer run's records that issue 18 asks is not met.
+/// how much. Measured: Urad 0.748 ± 0.014, Primos 1.215 ± 0.074, contact 1.047 ± 0.036 (of
+/// which the resolution check's shift 0.004, 0.060 and 0.020, the twin lattices' 0.005,
+/// 0.034 and 0.011). With one twin lattice instead of three, contact's lattice part was
+/// 0.001 and it missed by 2.8 SE; with the records' IMZs sampling the ground at their own
+/// (finer) marker spacing, Primos missed by 3.1 SE (`engine::imz`). Other lattice offsets
+/// are not re-measured on this engine; on the one before, Primos missed by up to 6.5 SE and
+/// contact by 4.3 at two of four (`docs::validation`, "Back-analysis"), so the recovery
+/// from a finer run's records that issue 18 asks is not shown to be met.
 #[test]
 fn calibrate_recovers_three_zones_from_records_of_a_finer_run() {
     let (scene, sc) = reduced();
