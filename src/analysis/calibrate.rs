@@ -46,8 +46,8 @@
 //!    are how the zones' influence on one another enters.
 //! 3. **globals** (when asked): n1 then φ factors, each on a grid around 1 with the zones
 //!    fixed, judged on all rows; θ̂ from the profile's parabola (below).
-//! 4. a run at the fitted values gives the error after, the same run on another marker
-//!    lattice the model's own noise, and a run at finer resolution the resolution's part of
+//! 4. a run at the fitted values gives the error after, the same run on three other marker
+//!    lattices the model's own noise, and a run at finer resolution the resolution's part of
 //!    the uncertainty (below).
 //!
 //! # Uncertainty
