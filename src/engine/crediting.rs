@@ -20,7 +20,14 @@
 //! draws air: its column is drawn out, with the ground around it standing where rilling is
 //! off; or it is held under uncaved ground and has drained), and it is credited the marker
 //! tonnes it drew, `short`, with the reason; so is a drawpoint whose ground has not caved,
-//! which draws nothing. What a period could not deliver is reported as `shortfall_tonnes`
+//! which draws nothing. A trailing window of N markers sees a deficit δ only once
+//! δ > 3/√N, so a drawpoint can draw a steady share short of its schedule and pass every
+//! window: on the mine scene at 1.65 m markers, drawpoints under uncaved ground drew 0.80
+//! of their schedule in markers for over a year, every day credited in full. So the credits
+//! are also held to a budget over the drawpoint's whole draw: they run ahead of its
+//! markers' mass by at most their discreteness, [`FLOWING_SIGMAS`] √N markers over the N
+//! its schedule stands for so far, and a draw step. A period that would overrun it is
+//! credited up to it, `short`. What a period could not deliver is reported as `shortfall_tonnes`
 //! (the running total) and is not credited later. Over a run the credited tonnes are the
 //! schedule less those shortfalls, exactly.
 //!
@@ -111,6 +118,37 @@ impl Stream {
     pub fn flowing(&self, s_end: f64, window: f64, marker: f64, step: f64) -> bool {
         let share = (1.0 - FLOWING_SIGMAS / (window / marker).sqrt()).max(0.0);
         s_end < window || self.mass_in(s_end - window, s_end) >= share * window - step
+    }
+
+    /// The tonnes a period of `scheduled` tonnes that drew `mass` in markers is credited,
+    /// the drawpoint having been credited `credited_before` over its earlier periods, its
+    /// schedule reaching `s_end` with this period (see the module docs, "Tonnes"): its
+    /// schedule while it is [`flowing`](Self::flowing) over the trailing `window` and its
+    /// credits stay within the budget, at most what brings the credits to the budget when
+    /// not, and what it drew when it is not flowing.
+    ///
+    /// The budget: the drawpoint's credits may run ahead of its markers' mass by their
+    /// discreteness over its whole draw, [`FLOWING_SIGMAS`] √N markers (N the markers its
+    /// schedule stands for so far, at least [`TRAIL_MARKERS`]) plus one draw `step`. A
+    /// trailing window detects a deficit δ only once it holds (3/δ)² markers, so a drawpoint
+    /// drawing a steady 0.8 of its schedule in markers passed every 60-marker window and was
+    /// credited its schedule for as long as it drew.
+    pub fn credit(
+        &self,
+        s_end: f64,
+        scheduled: f64,
+        mass: f64,
+        credited_before: f64,
+        (window, marker, step): (f64, f64, f64),
+    ) -> f64 {
+        let drew = mass.min(scheduled);
+        if !self.flowing(s_end, window, marker, step) {
+            return drew;
+        }
+        let n = (s_end / marker).max(TRAIL_MARKERS);
+        let budget = FLOWING_SIGMAS * n.sqrt() * marker + step;
+        let ahead = credited_before - (self.total() - mass);
+        (budget - ahead + mass).clamp(drew, scheduled)
     }
 
     /// The markers that stand for the scheduled interval [lo, hi]: those drawn in it, or,
@@ -303,6 +341,45 @@ mod tests {
         // Fewer markers than k: all of them.
         assert_eq!(stream(&[1.0, 2.0]).window(0.0, 1.0, 5), 0..2);
         assert_eq!(Stream::default().window(0.0, 1.0, 5), 0..0);
+    }
+
+    /// Credits period by period (10 t each, a 5 t step) of a drawpoint whose markers of
+    /// 10 t arrive at `rate` of its schedule; returns (credited, marker mass, short periods).
+    fn credit_run(rate: f64, periods: usize) -> (f64, f64, usize) {
+        let mut s = Stream::default();
+        let (mut credited, mut drawn, mut short, mut next) = (0.0, 0.0, 0, 0.0);
+        for p in 1..=periods {
+            let s_end = 10.0 * p as f64;
+            let before = s.total();
+            while next + 10.0 <= s_end * rate {
+                next += 10.0;
+                s.push(next / rate, 10.0, 0);
+            }
+            let mass = s.total() - before;
+            let window = (TRAIL_MARKERS * 10.0).max(10.0);
+            let c = s.credit(s_end, 10.0, mass, credited, (window, 10.0, 5.0));
+            short += usize::from(c < 10.0);
+            (credited, drawn) = (credited + c, drawn + mass);
+        }
+        (credited, drawn, short)
+    }
+
+    #[test]
+    fn credits_run_ahead_of_the_markers_by_their_discreteness_only() {
+        // Markers at the schedule: every period credited in full.
+        let (credited, drawn, short) = credit_run(1.0, 2000);
+        assert_eq!((credited, short), (20_000.0, 0));
+        assert_eq!(drawn, 20_000.0);
+        // Markers at 0.8 of it pass every 60-marker window (1 − 3/√60 = 0.61), but the
+        // credits never run further ahead of them than 3 √N markers and a step (N = 2000
+        // periods' worth: 134 markers, 1347 t). Once they are that far ahead, a period
+        // that draws its marker is credited in full and one that draws none is short: a
+        // fifth of the periods.
+        let (credited, drawn, short) = credit_run(0.8, 2000);
+        let budget = 3.0 * 2000f64.sqrt() * 10.0 + 5.0;
+        assert!(credited - drawn <= budget + 1e-9, "{credited} {drawn}");
+        assert!(credited - drawn > 0.9 * budget, "{credited} {drawn}");
+        assert!((300..=400).contains(&short), "{short}");
     }
 
     #[test]

@@ -30,7 +30,8 @@
 //! the stagnant ground at n0, and the marker mass drawn equals the tonnes scheduled up to the
 //! discreteness of markers (heavily overlapping IMZs, closer than about three openings,
 //! still lose a few percent in superposition; `docs::validation`). Each period is credited
-//! its schedule while its drawpoint is flowing, and its grades are read from the drawpoint's
+//! its schedule while its drawpoint is flowing and its credits stay within their
+//! discreteness of its markers over its whole draw, and its grades are read from the drawpoint's
 //! stream of drawn markers over the period's scheduled interval ([`crediting`]); a drawpoint
 //! that really could not deliver is `short`, with the reason. The distribution of credited
 //! over marker tonnes (per drawpoint-period, and per drawpoint over the run) goes into the
@@ -915,17 +916,16 @@ impl<'a> Engine<'a> {
             if scheduled <= 0.0 && count == 0 {
                 continue;
             }
-            // Credited the schedule while flowing (`crediting`), else what it drew.
+            // Credited the schedule while flowing and within the budget (`crediting`).
             let s_end = self.sched_cum[d] + scheduled;
             let stream = &self.streams[d];
             let marker = stream
                 .mean_mass()
                 .unwrap_or(self.unit_mass[self.drawpoint_block[d]]);
             let trail = (crediting::TRAIL_MARKERS * marker).max(scheduled);
-            let flowing =
-                caved[d] && stream.flowing(s_end, trail, marker, self.resolution.draw_increment);
-            let credited = if flowing {
-                scheduled
+            let step = self.resolution.draw_increment;
+            let credited = if caved[d] {
+                stream.credit(s_end, scheduled, mass, self.cum[d], (trail, marker, step))
             } else {
                 mass.min(scheduled)
             };
