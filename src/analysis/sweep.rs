@@ -402,7 +402,7 @@ pub fn sweep(
     let total = grid.len() + 1;
     // The reference and its check, each run on the lattice and on its twin.
     let mut twin = base.clone();
-    twin.resolution.lattice_offset = base.resolution.twin_offset();
+    twin.resolution.lattice_offset = base.resolution.nth_twin_offset(1);
     // The second half of the schedule's periods.
     let ids = &scene.periods.id;
     let late = ids.get(ids.len() / 2).copied().unwrap_or(i64::MAX);

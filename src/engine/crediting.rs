@@ -27,8 +27,8 @@
 //! are also held to a budget over the drawpoint's whole draw: they run ahead of its
 //! markers' mass by at most their discreteness, [`FLOWING_SIGMAS`] √N markers over the N
 //! its schedule stands for so far, and a draw step. A period that would overrun it is
-//! credited up to it, `short`. What a period could not deliver is reported as `shortfall_tonnes`
-//! (the running total) and is not credited later. Over a run the credited tonnes are the
+//! credited up to it, `short`. What a period could not deliver is reported as
+//! `shortfall_tonnes` (the running total) and is not credited later. Over a run the credited tonnes are the
 //! schedule less those shortfalls, exactly.
 //!
 //! # What was drawn

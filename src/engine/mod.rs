@@ -30,9 +30,9 @@
 //! the stagnant ground at n0, and the marker mass drawn equals the tonnes scheduled up to the
 //! discreteness of markers (heavily overlapping IMZs, closer than about three openings,
 //! still lose a few percent in superposition; `docs::validation`). Each period is credited
-//! its schedule while its drawpoint is flowing and its credits stay within their
-//! discreteness of its markers over its whole draw, and its grades are read from the drawpoint's
-//! stream of drawn markers over the period's scheduled interval ([`crediting`]); a drawpoint
+//! its schedule while its drawpoint is flowing and its credits stay within the discreteness
+//! of its markers over its whole draw, and its grades are read from the drawpoint's stream
+//! of drawn markers over the period's scheduled interval ([`crediting`]); a drawpoint
 //! that really could not deliver is `short`, with the reason. The distribution of credited
 //! over marker tonnes (per drawpoint-period, and per drawpoint over the run) goes into the
 //! run's mass balance (`manifest.json`), and a run whose drawpoints' median ratio leaves

@@ -90,12 +90,6 @@ pub struct Resolution {
 pub const TWIN_OFFSET: [f64; 2] = [0.5, 0.25];
 
 impl Resolution {
-    /// The lattice offset of this resolution's twin: moved by [`TWIN_OFFSET`], wrapped
-    /// into [−0.5, 0.5).
-    pub fn twin_offset(&self) -> [f64; 2] {
-        self.nth_twin_offset(1)
-    }
-
     /// The lattice offset of this resolution's k-th twin: moved by k × [`TWIN_OFFSET`],
     /// wrapped into [−0.5, 0.5) (k = 0 is its own lattice; the first three twins lie at
     /// (½, ¼), (0, ½) and (½, ¾) spacings from it, each another sample of the ground).
@@ -831,7 +825,7 @@ mod tests {
         let twin = |o: [f64; 2]| {
             let mut sc = Scenario::default();
             sc.resolution.lattice_offset = o;
-            let t = sc.resolution.twin_offset();
+            let t = sc.resolution.nth_twin_offset(1);
             sc.resolution.lattice_offset = t;
             sc.check().unwrap();
             t
