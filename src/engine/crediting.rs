@@ -28,8 +28,8 @@
 //! markers' mass by at most their discreteness, [`FLOWING_SIGMAS`] √N markers over the N
 //! its schedule stands for so far, and a draw step. A period that would overrun it is
 //! credited up to it, `short`. What a period could not deliver is reported as
-//! `shortfall_tonnes` (the running total) and is not credited later. Over a run the credited tonnes are the
-//! schedule less those shortfalls, exactly.
+//! `shortfall_tonnes` (the running total) and is not credited later. Over a run the
+//! credited tonnes are the schedule less those shortfalls, exactly.
 //!
 //! # What was drawn
 //! A period's grades, dilution, origin elevation, fragment sizes, fines and lithology shares
@@ -129,10 +129,8 @@ impl Stream {
     ///
     /// The budget: the drawpoint's credits may run ahead of its markers' mass by their
     /// discreteness over its whole draw, [`FLOWING_SIGMAS`] √N markers (N the markers its
-    /// schedule stands for so far, at least [`TRAIL_MARKERS`]) plus one draw `step`. A
-    /// trailing window detects a deficit δ only once it holds (3/δ)² markers, so a drawpoint
-    /// drawing a steady 0.8 of its schedule in markers passed every 60-marker window and was
-    /// credited its schedule for as long as it drew.
+    /// schedule stands for so far, at least [`TRAIL_MARKERS`]) plus one draw `step`; the
+    /// module docs say why the trailing window alone is not enough.
     pub fn credit(
         &self,
         s_end: f64,
