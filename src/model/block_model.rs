@@ -101,7 +101,12 @@ impl BlockModel {
     /// block.
     #[inline]
     pub fn locate(&self, p: [f64; 3]) -> Option<usize> {
-        let c = self.cell(p)?;
+        self.at_cell(self.cell(p)?)
+    }
+
+    /// Row of the block in grid cell `c`, or None in a missing block.
+    #[inline]
+    pub fn at_cell(&self, c: [usize; 3]) -> Option<usize> {
         let b = self.index[c[0] + self.dims[0] * (c[1] + self.dims[1] * c[2])];
         (b != NO_BLOCK).then_some(b as usize)
     }

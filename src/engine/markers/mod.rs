@@ -4,7 +4,11 @@
 //! stands for the cube of side s around it at its block's in-situ density, ρ (1 − n0) s³
 //! (the cells of the last sites along an axis run to the grid's face), so the marker field
 //! is as dense as the ground everywhere and its mass adds up to the block model's where the
-//! density is uniform; a block's own mass is exact where s divides it. Stagnant ground is
+//! density is uniform; a block's own mass is exact where s divides it. A drawn marker
+//! reports its cell's grade, lithology and waste share: the mean over the blocks the cell
+//! overlaps, weighted by their in-situ solids there (`Lattice::cell_blocks`), so the
+//! lattice carries the block model's metal where the density is uniform, whatever the
+//! spacing (its size and fines are its site's block's). Stagnant ground is
 //! never materialised: a site becomes a marker (row of [`Markers`]) only when an IMZ
 //! engulfs it, and the marker id is the site index. So stagnant ground costs nothing per increment, and the lattice itself
 //! is the spatial index of the stagnant markers.
