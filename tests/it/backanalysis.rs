@@ -362,12 +362,12 @@ fn assert_recovers(report: &CalibrationReport, truth: &Calibration, noise: f64) 
 }
 
 /// Three zones moved at once, records from a run at the fit's own resolution (5% noise,
-/// seed 7). Measured: Urad 0.769 ± 0.026 (truth 0.75), Primos 1.247 ± 0.035 (1.3),
-/// contact 1.019 ± 0.033 (1), of which the marker sampling's part (the twin lattices'
-/// shifts) 0.011, 0.023 and 0.010; overall RMSE 0.0181% → 0.0149%; the model's noise
-/// 0.0077%, the records' 0.0127% (0.0124% added); 49 runs. With both lattices moved to
+/// seed 7). Measured: Urad 0.769 ± 0.020 (truth 0.75), Primos 1.247 ± 0.034 (1.3),
+/// contact 1.019 ± 0.030 (1), of which the marker sampling's part (the twin lattices'
+/// shifts) 0.010, 0.021 and 0.009; overall RMSE 0.0181% → 0.0149%; the model's noise
+/// 0.0076%, the records' 0.0128% (0.0124% added); 49 runs. With both lattices moved to
 /// (0.2, 0.1) and (0.1, −0.4) every factor stays within 0.9 SE; at (−0.3, 0.2) Primos
-/// misses by 3.6 (`docs::validation`, "Back-analysis").
+/// misses by 3.5 (`docs::validation`, "Back-analysis").
 #[test]
 fn calibrate_recovers_three_zones_moved_at_once() {
     let (scene, sc) = reduced();
@@ -380,12 +380,12 @@ fn calibrate_recovers_three_zones_moved_at_once() {
 
 /// The same truth, records from a run at half the fit's marker spacing (8 times the
 /// markers): the fit must absorb what its own resolution gets wrong, and its SE must say
-/// how much. Measured: Urad 0.748 ± 0.014, Primos 1.215 ± 0.074, contact 1.047 ± 0.036 (of
-/// which the resolution check's shift 0.004, 0.060 and 0.020, the twin lattices' 0.005,
-/// 0.034 and 0.011). With one twin lattice instead of three, contact's lattice part was
+/// how much. Measured: Urad 0.748 ± 0.014, Primos 1.215 ± 0.078, contact 1.047 ± 0.034 (of
+/// which the resolution check's shift 0.001, 0.065 and 0.016, the twin lattices' 0.006,
+/// 0.032 and 0.010). With one twin lattice instead of three, contact's lattice part was
 /// 0.001 and it missed by 2.8 SE; with the records' IMZs sampling the ground at their own
 /// (finer) marker spacing, Primos missed by 3.1 SE (`engine::imz`). At three other lattice
-/// offsets the fit misses: contact by 2.9 and 5.7 SE, Primos by 2.7 (`docs::validation`,
+/// offsets the fit misses: contact by 5.6 and 4.8 SE, Primos by 2.6 (`docs::validation`,
 /// "Back-analysis"), so the recovery from a finer run's records that issue 18 asks is met
 /// at one lattice of four.
 #[test]
