@@ -24,57 +24,67 @@
 //!   `docs::performance`).
 //!
 //! # From an accuracy target
-//! The speed–accuracy sweep (`analysis::sweep`, `docs::performance`, "Speed and accuracy") measured what
-//! each knob buys over the whole demo draw: the grade RMSE against the reference follows
-//! the marker spacing, and h and the increment move it little. That is what one expects of
-//! a sampling error: a drawpoint-period's grade is the mean of the N markers it draws, N ∝
-//! tonnes / (ρ s³), so its error goes as N^(−1/2) ∝ s^(3/2). The sweep's fit of
-//! E = [`E_DEFAULT`] × m^[`SPACING_EXPONENT`] (m the spacing as a multiple of the scene
-//! default) gives the spacing for a target T:
+//! The speed–accuracy sweep (`analysis::sweep`, `docs::performance`, "Automatic
+//! resolution") measured the whole-demo grade RMSE per drawpoint-period against the
+//! converged reference at marker spacings from 0.55 to 1 times the default, at the default
+//! h and at h/2. At each h it is a floor plus the sampling noise of discrete markers: a
+//! drawpoint-period's grade is the mean of the N markers it draws, N ∝ 1/s³, so
 //!
-//! m = (T / E_DEFAULT)^(1 / SPACING_EXPONENT), bounded to [`SPACING_MULT`],
+//! E(m)² = F_h² + N_h² m³ (m the spacing as a multiple of the scene default),
 //!
-//! then bounded by the scene: no coarser than the smallest block (lattice sites between
-//! blocks would carry no marker; `stability`) and than [`DRAWPOINT_SPACING_FRACTION`] of the
-//! median distance between neighbouring drawpoints (an IMZ must hold enough markers across
-//! to be sampled), and no finer than [`FRAG_FRACTION`] × d̄ (markers closer than fragments
-//! stand for no more material than one fragment). h stays the scene default (h/2 costs
-//! 2.2 times the time and moves the whole-run grade error from 1.75% to 1.19%) but never
-//! thinner than d̄ (h/d̄ ≥ 1, `stability`). The increment follows the spacing: the opening
-//! disk's tonnes times the spacing over 0.5 h when coarser than 0.5 h (a marker then moves
-//! about as many spacings per update as at the demo's default), one disk when finer (at the
-//! default spacing, increment × 4 adds 0.3 points to the whole-run error and saves a
-//! sixth of the time). Each step is monotone in T, so a tighter target never gives a
-//! coarser resolution.
+//! with F and N in [`FLOOR`] and [`NOISE`]. The floor is what finer markers cannot take
+//! away at that h: the disk thickness's bias, and what the reference itself carries. At
+//! the default h it is 1.04%, so a tighter target needs thinner disks, and thinner disks
+//! are the cheaper way to any target below 1.5%. For a target T the rule takes, at the
+//! default h and at h/2, the coarsest spacing whose E(m) ≤ T,
+//!
+//! m = ((T² − F_h²) / N_h²)^(1/3), bounded to [`SPACING_MULT`],
+//!
+//! and keeps whichever of the two the cost model ([`H_COST_EXPONENT`],
+//! [`SPACING_COST_EXPONENT`]) says is cheaper; a target below both floors gets h/2 at the
+//! finest multiple. The spacing is then bounded by the scene: no coarser than the smallest
+//! block (lattice sites between blocks would carry no marker; `stability`) and than
+//! [`DRAWPOINT_SPACING_FRACTION`] of the median distance between neighbouring drawpoints (an
+//! IMZ must hold enough markers across to be sampled), and no finer than [`FRAG_FRACTION`]
+//! × d̄ (markers closer than fragments stand for no more material than one fragment). h is
+//! never thinner than d̄ (h/d̄ ≥ 1, `stability`). The increment follows the spacing: the
+//! opening disk's tonnes times the spacing over 0.5 h when coarser than 0.5 h (a marker
+//! then moves about as many spacings per update as at the demo's default), one disk when
+//! finer (at the default spacing, increment × 4 adds 0.3 points to the whole-run error and
+//! saves a sixth of the time). A tighter target never gives thicker disks, a coarser
+//! spacing at the same h, a larger expected error or a cheaper choice (where the rule
+//! moves to h/2 the spacing may coarsen, since thinner disks buy more than the markers
+//! they replace).
 //!
 //! The constants are fitted on the demo; another scene's error at the same multiples
 //! differs as its grade variability and its tonnes per drawpoint-period do. Run
 //! `caveflow sweep` on the scene to check: the chart marks where the automatic choice lands.
-//! Nor is the error a power of the spacing everywhere: where the spacing does not divide
-//! the blocks, marker cells straddle the blocks' faces and carry the grade of the block at
-//! their site across them, and on the demo the whole-run error then jumps between 1.1 and
-//! 2.0% among spacings from 1.05 to 1.52 m (`docs::performance`, "Automatic resolution").
-//! The current engine's sweep would refit the constants to 1.68% and 1.14, whose choice
-//! for 1% (1.21 m) lands at 1.36%, so they are kept.
+//! The error is a smooth function of the spacing because a drawn marker reports its
+//! cell's grade (`engine::markers`); with its site's block's grade it jumped between 1.1
+//! and 2.0% among spacings from 1.05 to 1.52 m, as the cells fell across the blocks' faces.
 
 use crate::engine::ResolvedResolution;
 use crate::model::{Scenario, Scene};
 
-/// Grade RMSE of the scene default against the reference over the whole demo draw: 1.58%
-/// against one reference run, in the slope sweep the exponent below comes from
-/// (`docs::performance`, "Automatic resolution"); 1.54% against the mean of the
-/// reference's two runs at two lattice offsets, and 1.48% from the limit once that mean's
-/// noise is taken out ("Sampling noise").
-pub const E_DEFAULT: f64 = 0.0158;
+/// Floor F_h of the whole-demo grade RMSE (relative, per drawpoint-period) at the scene
+/// default h and at h/2: least-squares fits of E² = F² + N² m³ to the sweep's runs at
+/// spacing × 1 to 0.55 (seven at h, 1.74–1.20%, fit within 0.035 points rms; twelve at
+/// h/2, four of them at the rule's choice for 1%, 1.19–0.63%, within 0.063), against the
+/// mean of the reference's two runs
+/// (`docs::performance`, "Automatic resolution").
+pub const FLOOR: [f64; 2] = [0.0104, 0.0043];
 
-/// Exponent of the grade RMSE in the marker-spacing multiple: the least-squares slope (in
-/// logs) of the whole-demo sweep's runs at h and increment × 1 and spacing × 2, 1.41, 1 and
-/// 0.71, whose errors are 3.88, 2.55, 1.58 and 1.04% (`docs::performance`). Sampling alone
-/// would give 1.5; the measured distances fall more slowly because the reference's own
-/// noise is in them (at spacing × 0.5, the reference's spacing, the distance is still
-/// 0.92%), which makes the rule choose finer markers than sampling alone would, never
-/// coarser.
-pub const SPACING_EXPONENT: f64 = 1.29;
+/// Sampling-noise coefficient N_h of the same fits: the noise at the default spacing.
+pub const NOISE: [f64; 2] = [0.0140, 0.0118];
+
+/// Cost of a run against the scene default as (h0/h)^a × m^(−b), from the whole-demo
+/// sweep's wall times (`docs::performance`, "Speed and accuracy"): h/2 took 1.79 times the
+/// default's time at the default spacing (a = 0.84); spacing × 2 took 0.26 times it, and
+/// spacing × 0.84 at h/2 1.59 times h/2 at × 1 (b = 1.9 and 2.6; 2 between them).
+pub const H_COST_EXPONENT: f64 = 0.84;
+
+/// The spacing's exponent b of the cost model ([`H_COST_EXPONENT`]).
+pub const SPACING_COST_EXPONENT: f64 = 2.0;
 
 /// Bounds of the spacing multiple the target can choose: the sweep measured 0.5–4; a quarter
 /// of the default is 64× the markers (hours at mine scale), and 4× is as coarse as the
@@ -151,22 +161,44 @@ fn spacing_cap(scene: &Scene, min_block: f64) -> f64 {
     }
 }
 
-/// Spacing multiple for an accuracy target, before the scene's bounds (monotone in the
-/// target: a tighter target never gives a larger multiple).
-pub fn spacing_multiple(target: f64) -> f64 {
-    (target / E_DEFAULT)
-        .powf(1.0 / SPACING_EXPONENT)
-        .clamp(SPACING_MULT.0, SPACING_MULT.1)
+/// The rule's choice for an accuracy target, before the scene's bounds: (h multiple, 1 or
+/// ½, and spacing multiple m), the cheaper of the two h's that reach the target, or h/2 at
+/// the finest multiple when neither does.
+pub fn target_multiples(target: f64) -> (f64, f64) {
+    let cost = |k: f64, m: f64| k.powf(-H_COST_EXPONENT) * m.powf(-SPACING_COST_EXPONENT);
+    let options = [(1.0, 0), (0.5, 1)].map(|(k, i)| {
+        let m3 = (target * target - FLOOR[i] * FLOOR[i]) / (NOISE[i] * NOISE[i]);
+        let reaches = m3 >= SPACING_MULT.0.powi(3);
+        (
+            k,
+            m3.max(0.0).cbrt().clamp(SPACING_MULT.0, SPACING_MULT.1),
+            reaches,
+        )
+    });
+    options
+        .iter()
+        .filter(|o| o.2)
+        .min_by(|a, b| cost(a.0, a.1).total_cmp(&cost(b.0, b.1)))
+        .map_or((0.5, SPACING_MULT.0), |o| (o.0, o.1))
+}
+
+/// The whole-draw grade RMSE per drawpoint-period the rule expects at disk thickness `k`
+/// times the scene default and spacing multiple `m`: E² = F² + N² m³ with F² and N²
+/// interpolated linearly in k between h/2 and h (held beyond them; relative, fitted on the
+/// demo, so an estimate elsewhere).
+pub fn model_grade_rmse(k: f64, m: f64) -> f64 {
+    let t = ((k - 0.5) / 0.5).clamp(0.0, 1.0);
+    let sq = |v: [f64; 2]| t * v[0] * v[0] + (1.0 - t) * v[1] * v[1];
+    (sq(FLOOR) + sq(NOISE) * m.powi(3)).sqrt()
 }
 
 /// What the rule says of a resolution: its marker spacing as a multiple m of the scene's
-/// default spacing (at the resolution's own h), and the whole-draw grade RMSE per
-/// drawpoint-period the sweep's fit gives that multiple, E = [`E_DEFAULT`] ×
-/// m^[`SPACING_EXPONENT`] (relative; fitted on the demo, so an estimate elsewhere).
+/// default spacing, and the whole-draw grade RMSE per
+/// drawpoint-period [`model_grade_rmse`] gives it.
 pub fn expected_grade_rmse(scene: &Scene, res: &ResolvedResolution) -> (f64, f64) {
-    let (_, min_block, _, _) = scene_default(scene);
-    let m = res.marker_spacing / default_spacing(scene, res.layer_thickness, min_block);
-    (m, E_DEFAULT * m.powf(SPACING_EXPONENT))
+    let (h0, min_block, _, _) = scene_default(scene);
+    let m = res.marker_spacing / default_spacing(scene, h0, min_block);
+    (m, model_grade_rmse(res.layer_thickness / h0, m))
 }
 
 /// Median over drawpoints of the distance to the nearest other drawpoint (NaN with fewer
@@ -217,14 +249,14 @@ pub fn resolve(scene: &Scene, sc: &Scenario) -> ResolvedResolution {
         }
         Some(target) => {
             let dbar = mean_frag(scene);
+            let (k, m) = target_multiples(target);
             let h = if dbar.is_finite() {
-                h0.max(dbar.min(0.5 * min_block))
+                (k * h0).max(dbar.min(0.5 * min_block))
             } else {
-                h0
+                k * h0
             };
             let h = set.layer_thickness.unwrap_or(h);
-            let s0 = default_spacing(scene, h, min_block);
-            let m = spacing_multiple(target);
+            let s0 = default_spacing(scene, h0, min_block);
             let s = if m > 1.0 {
                 // Coarser: bounded by the blocks and the drawpoint spacing, never below s0.
                 (s0 * m).min(spacing_cap(scene, min_block)).max(s0)
@@ -298,13 +330,38 @@ mod tests {
         assert_eq!(fine.draw_increment, r.draw_increment);
     }
 
+    /// Over targets from 10⁻⁵ to 1: a tighter target never gives thicker disks, a coarser
+    /// spacing at the same h, a larger expected error or a cheaper run; the choice meets
+    /// the target wherever a multiple in bounds can; the default's own error gives the
+    /// default h and about the default spacing; and a target between the two floors needs h/2.
     #[test]
-    fn tighter_targets_never_give_coarser_spacing() {
-        let targets = [1e-5, 1e-4, 3e-4, 8.6e-4, 2e-3, 5e-3, 1e-2, 3e-2, 0.1, 1.0];
-        let m: Vec<f64> = targets.iter().map(|&t| spacing_multiple(t)).collect();
-        assert!(m.windows(2).all(|w| w[0] <= w[1]), "{m:?}");
-        assert_eq!(spacing_multiple(E_DEFAULT), 1.0);
-        assert_eq!(m[0], SPACING_MULT.0);
-        assert_eq!(m[m.len() - 1], SPACING_MULT.1);
+    fn tighter_targets_never_give_a_coarser_resolution() {
+        let cost = |(k, m): (f64, f64)| k.powf(-H_COST_EXPONENT) * m.powf(-SPACING_COST_EXPONENT);
+        let targets: Vec<f64> = (0..=500)
+            .map(|i| 10f64.powf(-5.0 + 5.0 * i as f64 / 500.0))
+            .collect();
+        let chosen: Vec<(f64, f64)> = targets.iter().rev().map(|&t| target_multiples(t)).collect();
+        for (w, t) in chosen.windows(2).zip(targets.iter().rev().skip(1)) {
+            let ((k0, m0), (k1, m1)) = (w[0], w[1]);
+            assert!(k1 <= k0, "{t}: {w:?}");
+            assert!(k1 < k0 || m1 <= m0, "{t}: {w:?}");
+            assert!(
+                model_grade_rmse(k1, m1) <= model_grade_rmse(k0, m0) + 1e-15,
+                "{t}: {w:?}"
+            );
+            assert!(cost(w[1]) >= cost(w[0]) * (1.0 - 1e-12), "{t}: {w:?}");
+        }
+        for (&t, &(k, m)) in targets.iter().rev().zip(&chosen) {
+            if m > SPACING_MULT.0 && m < SPACING_MULT.1 {
+                assert!(model_grade_rmse(k, m) <= t * (1.0 + 1e-9), "{t}: {k} {m}");
+            }
+        }
+        let e_default = model_grade_rmse(1.0, 1.0);
+        let (k, m) = target_multiples(e_default);
+        assert_eq!(k, 1.0);
+        assert!((m - 1.0).abs() < 1e-9, "{m}");
+        assert_eq!(target_multiples(0.5 * (FLOOR[0] + FLOOR[1])).0, 0.5);
+        assert_eq!(target_multiples(1e-5), (0.5, SPACING_MULT.0));
+        assert_eq!(target_multiples(1.0), (1.0, SPACING_MULT.1));
     }
 }
