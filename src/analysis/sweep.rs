@@ -25,9 +25,9 @@
 //!
 //! # The reference and its own error
 //! REBOP has no closed form to compare against, so the reference is a fine run, and the
-//! errors are distances to it. Its error is the markers' sampling noise above all
-//! (`docs::performance`, "Sampling noise"), so the reference is run twice, on the lattice
-//! and on its twin, moved in plan by
+//! errors are distances to it. Its error is the markers' sampling noise and its bias
+//! (`docs::performance`, "Sampling noise"); for the noise the reference is run twice, on
+//! the lattice and on its twin, moved in plan by
 //! [`TWIN_OFFSET`](crate::model::scenario::TWIN_OFFSET) (`resolution.lattice_offset`): two
 //! equally good samples of the same ground. The errors are distances to their mean (per
 //! drawpoint-period for the grades, per drawpoint for the rest). Half the distance between
