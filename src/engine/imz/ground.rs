@@ -195,6 +195,7 @@ impl Ground<'_> {
         );
         let (mut c, mut si) = (1.0, 0.0);
         let bm = self.blocks;
+        let mut last = u32::MAX;
         for _ in 0..n_pts {
             let (ck, sk) = (c, si);
             (c, si) = (c * dc - si * ds, c * ds + si * dc);
@@ -203,12 +204,23 @@ impl Ground<'_> {
                 continue;
             };
             let pj = bm.n1[b] - bm.n0[b];
+            // The IMZ that held the previous point is tried first: along the perimeter
+            // one neighbour's IMZ usually holds a run of points (the same answer, sooner).
+            let holds = |e: u32| e as usize != me && self.geoms[e as usize].contains(p);
             let dilated = pj < min_jump
-                || self
+                || (last != u32::MAX && holds(last))
+                || match self
                     .grid
                     .at(p[0], p[1])
                     .iter()
-                    .any(|&e| e as usize != me && self.geoms[e as usize].contains(p));
+                    .find(|&&e| e != last && holds(e))
+                {
+                    Some(&e) => {
+                        last = e;
+                        true
+                    }
+                    None => false,
+                };
             let j = if dilated { 0.0 } else { pj };
             sum += j;
             n += 1;
