@@ -195,7 +195,7 @@ impl Ground<'_> {
         );
         let (mut c, mut si) = (1.0, 0.0);
         let bm = self.blocks;
-        let mut last = u32::MAX;
+        let mut last: Option<u32> = None;
         for _ in 0..n_pts {
             let (ck, sk) = (c, si);
             (c, si) = (c * dc - si * ds, c * ds + si * dc);
@@ -205,18 +205,21 @@ impl Ground<'_> {
             };
             let pj = bm.n1[b] - bm.n0[b];
             // The IMZ that held the previous point is tried first: along the perimeter
-            // one neighbour's IMZ usually holds a run of points (the same answer, sooner).
+            // one neighbour's IMZ usually holds a run of points. The same answer, sooner:
+            // `contains` is the geometry's own test, and the grid lists every IMZ that can
+            // hold the point, so `last` holding it means the scan below would find one.
             let holds = |e: u32| e as usize != me && self.geoms[e as usize].contains(p);
             let dilated = pj < min_jump
-                || (last != u32::MAX && holds(last))
+                || last.is_some_and(holds)
                 || match self
                     .grid
                     .at(p[0], p[1])
                     .iter()
-                    .find(|&&e| e != last && holds(e))
+                    .copied()
+                    .find(|&e| Some(e) != last && holds(e))
                 {
-                    Some(&e) => {
-                        last = e;
+                    Some(e) => {
+                        last = Some(e);
                         true
                     }
                     None => false,
