@@ -218,6 +218,23 @@ impl SizeDist {
 }
 
 impl SizeDist {
+    /// The size (m) that a share `q` (0 < q < 1) of this distribution passes: the smallest x
+    /// with [`passing`](Self::passing)(x) ≥ q, in closed form (∞ where none does).
+    pub fn quantile(&self, q: f64) -> f64 {
+        match *self {
+            SizeDist::Attrited { d0, w, m } => {
+                if w >= q && w > 0.0 {
+                    d0 * (q / w).powf(1.0 / m)
+                } else {
+                    d0
+                }
+            }
+            SizeDist::Weibull { shape, scale } => scale * (-(1.0 - q).ln()).powf(1.0 / shape),
+        }
+    }
+}
+
+impl SizeDist {
     /// A total order on the parameters (for merging equal distributions).
     fn key(&self) -> (u8, u64, u64, u64) {
         match *self {
@@ -246,17 +263,41 @@ pub fn p20_p50_p80(mix: &mut Vec<(SizeDist, f64)>) -> [f64; 3] {
 /// q = 0.2. NaN for an empty mix. Bisection on ln x over [1 µm, 1 km] (60 halvings: a
 /// relative precision of 1e-17, below f64 rounding); for a mix of single sizes it returns
 /// the smallest size whose cumulative mass reaches q, to that precision.
+///
+/// The mix passes q between the smallest and the largest of its parts' own q-sizes
+/// ([`SizeDist::quantile`]), so a halving whose midpoint lies outside them by more than
+/// [`KNOWN`] has a known outcome and is not evaluated: the same halvings, the same answer
+/// bit for bit, with about half the evaluations (each a `powf` and an `exp` per part; at
+/// mine scale, with a P20, P50 and P80 for every drawpoint-day, they were 5% of a run).
 pub fn passing_size(mix: &[(SizeDist, f64)], q: f64) -> f64 {
     let total: f64 = mix.iter().map(|(_, m)| m).sum();
     if mix.is_empty() || !(total > 0.0) {
         return f64::NAN;
     }
+    // The bracket of the parts' q-sizes in ln x, widened by KNOWN (none if a size is not
+    // a positive number).
+    let (mut below, mut above) = (f64::INFINITY, f64::NEG_INFINITY);
+    for (d, _) in mix {
+        let x = d.quantile(q);
+        if !(x > 0.0 && x.is_finite()) {
+            (below, above) = (f64::NEG_INFINITY, f64::INFINITY);
+            break;
+        }
+        (below, above) = (below.min(x.ln() - KNOWN), above.max(x.ln() + KNOWN));
+    }
     let (mut lo, mut hi) = (1e-6f64.ln(), 1e3f64.ln());
     for _ in 0..60 {
         let mid = 0.5 * (lo + hi);
-        let x = mid.exp();
-        let passing: f64 = mix.iter().map(|(d, m)| m * d.passing(x)).sum();
-        if passing >= q * total {
+        let reaches = if mid < below {
+            false
+        } else if mid > above {
+            true
+        } else {
+            let x = mid.exp();
+            let passing: f64 = mix.iter().map(|(d, m)| m * d.passing(x)).sum();
+            passing >= q * total
+        };
+        if reaches {
             hi = mid;
         } else {
             lo = mid;
@@ -265,6 +306,12 @@ pub fn passing_size(mix: &[(SizeDist, f64)], q: f64) -> f64 {
     hi.exp()
 }
 
+/// How far (in ln x) outside its parts' q-sizes a size must lie for [`passing_size`] to
+/// know the mix's outcome there without evaluating it. A part's passing share changes by
+/// its slope in ln x (α (−ln(1 − q)) (1 − q) for a Weibull, m q for an attrited part)
+/// times this, some 1e-9 for the shapes and exponents of caved rock, far above the 1e-16
+/// rounding of the sums it is compared through.
+const KNOWN: f64 = 1e-8;
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -419,6 +466,64 @@ mod tests {
         assert_eq!(mix.len(), 3);
         let whole = [(one(0.3), 1.0), (one(0.1), 1.0), (wb, 1.0)];
         assert_eq!(merged, [0.2, 0.5, 0.8].map(|q| passing_size(&whole, q)));
+    }
+
+    /// Skipping the halvings whose outcome the parts' q-sizes decide changes nothing: over
+    /// 20 000 random mixes of 1–12 parts (Weibull shapes 0.3–4, attrited fractions 0–1 and
+    /// exponents 0.1–2, sizes 1 mm–3 m, some parts equal in size) P20, P50 and P80 equal,
+    /// bit for bit, those of the bisection that evaluates every halving.
+    #[test]
+    fn known_halvings_skipped_give_the_same_sizes() {
+        use rand::SeedableRng;
+        let every = |mix: &[(SizeDist, f64)], q: f64| {
+            let total: f64 = mix.iter().map(|(_, m)| m).sum();
+            let (mut lo, mut hi) = (1e-6f64.ln(), 1e3f64.ln());
+            for _ in 0..60 {
+                let mid = 0.5 * (lo + hi);
+                let passing: f64 = mix.iter().map(|(d, m)| m * d.passing(mid.exp())).sum();
+                if passing >= q * total {
+                    hi = mid;
+                } else {
+                    lo = mid;
+                }
+            }
+            hi.exp()
+        };
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+        for _ in 0..20_000 {
+            let n = rng.random_range(1..=12);
+            let mix: Vec<(SizeDist, f64)> = (0..n)
+                .map(|_| {
+                    let size = 10f64.powf(rng.random_range(-3.0..0.5));
+                    let d = if rng.random_bool(0.5) {
+                        SizeDist::Weibull {
+                            shape: rng.random_range(0.3..4.0),
+                            scale: size,
+                        }
+                    } else {
+                        let w = if rng.random_bool(0.2) {
+                            0.0
+                        } else {
+                            rng.random_range(0.0..1.0)
+                        };
+                        SizeDist::Attrited {
+                            d0: size,
+                            w,
+                            m: rng.random_range(0.1..2.0),
+                        }
+                    };
+                    (d, rng.random_range(0.01..100.0))
+                })
+                .collect();
+            for q in [0.2, 0.5, 0.8] {
+                let (fast, slow) = (passing_size(&mix, q), every(&mix, q));
+                assert_eq!(
+                    fast.to_bits(),
+                    slow.to_bits(),
+                    "{mix:?} q {q}: {fast} vs {slow}"
+                );
+            }
+        }
     }
 
     /// Weibull sampling through the per-marker streams: over 200 000 markers the sample mean
