@@ -266,9 +266,10 @@ pub fn p20_p50_p80(mix: &mut Vec<(SizeDist, f64)>) -> [f64; 3] {
 ///
 /// The mix passes q between the smallest and the largest of its parts' own q-sizes
 /// ([`SizeDist::quantile`]), so a halving whose midpoint lies outside them by more than
-/// [`KNOWN`] has a known outcome and is not evaluated: the same halvings, the same answer
-/// bit for bit, with about half the evaluations (each a `powf` and an `exp` per part; at
-/// mine scale, with a P20, P50 and P80 for every drawpoint-day, they were 5% of a run).
+/// `KNOWN` (1e-8 in ln x) has a known outcome and is not evaluated: the same halvings, the
+/// same answer bit for bit, with about half the evaluations (each a `powf` and an `exp`
+/// per part; at mine scale, with a P20, P50 and P80 for every drawpoint-day, they were 5%
+/// of a run's samples).
 pub fn passing_size(mix: &[(SizeDist, f64)], q: f64) -> f64 {
     let total: f64 = mix.iter().map(|(_, m)| m).sum();
     if mix.is_empty() || !(total > 0.0) {
