@@ -215,9 +215,7 @@ impl SizeDist {
             }
         }
     }
-}
 
-impl SizeDist {
     /// The size (m) that a share `q` (0 < q < 1) of this distribution passes: the smallest x
     /// with [`passing`](Self::passing)(x) ≥ q, in closed form (∞ where none does).
     pub fn quantile(&self, q: f64) -> f64 {
@@ -313,6 +311,7 @@ pub fn passing_size(mix: &[(SizeDist, f64)], q: f64) -> f64 {
 /// times this, some 1e-9 for the shapes and exponents of caved rock, far above the 1e-16
 /// rounding of the sums it is compared through.
 const KNOWN: f64 = 1e-8;
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -471,8 +470,8 @@ mod tests {
 
     /// Skipping the halvings whose outcome the parts' q-sizes decide changes nothing: over
     /// 20 000 random mixes of 1–12 parts (Weibull shapes 0.3–4, attrited fractions 0–1 and
-    /// exponents 0.1–2, sizes 1 mm–3 m, some parts equal in size) P20, P50 and P80 equal,
-    /// bit for bit, those of the bisection that evaluates every halving.
+    /// exponents 0.1–2, sizes 1 mm–3 m) P20, P50 and P80 equal, bit for bit, those of the
+    /// bisection that evaluates every halving.
     #[test]
     fn known_halvings_skipped_give_the_same_sizes() {
         use rand::SeedableRng;
