@@ -227,7 +227,7 @@ impl SizeDist {
                     d0
                 }
             }
-            SizeDist::Weibull { shape, scale } => scale * (-(1.0 - q).ln()).powf(1.0 / shape),
+            SizeDist::Weibull { shape, scale } => weibull_size(shape, scale, q),
         }
     }
 }
