@@ -223,12 +223,6 @@ mod tests {
         assert!((skew - 1.0).abs() < 0.15, "{skew}");
     }
 
-    /// The whole path (`Percolation::apply`: Γ and d̄ from the marker pass, k1, k2 and VMR
-    /// from the block, one stream per marker) over 100 000 markers at the same point of a
-    /// tall IMZ (so no move is clipped): the percolated distances have the mean L̄ and the
-    /// spread sqrt(VMR L̄) of the formula. VMR = 0.01 m gives a Gamma shape of 0.39, so the
-    /// standard errors are 0.5 % (mean) and 0.7 % (standard deviation); tolerances 3 % and
-    /// 4 %.
     /// A disk of radius r (unchanged since the last update) with 0.5 m³ of void passed
     /// through it, w = 10 m, d̄ = 0.1 m, in open ground.
     fn disk(r: f64) -> DiskMotion {
@@ -246,6 +240,12 @@ mod tests {
         }
     }
 
+    /// The whole path (`Percolation::apply`: Γ and d̄ from the marker pass, k1, k2 and VMR
+    /// from the block, one stream per marker) over 100 000 markers at the same point of a
+    /// tall IMZ (so no move is clipped): the percolated distances have the mean L̄ and the
+    /// spread sqrt(VMR L̄) of the formula. VMR = 0.01 m gives a Gamma shape of 0.39, so the
+    /// standard errors are 0.5 % (mean) and 0.7 % (standard deviation); tolerances 3 % and
+    /// 4 %.
     #[test]
     fn percolated_distances_over_many_markers_match_the_formula() {
         let (geoms, motion, grid) = field_parts(vec![4.0; 200]);
@@ -307,7 +307,8 @@ mod tests {
             h: 1.0,
             radius,
         };
-        let motion: Vec<DiskMotion> = geom.radius.iter().map(|&r| disk(r)).collect();
+        let mut motion: Vec<DiskMotion> = geom.radius.iter().map(|&r| disk(r)).collect();
+        crate::engine::markers::prepare(&mut motion, geom.h);
         let grid = ImzGrid::build(
             std::slice::from_ref(&geom),
             &[0],

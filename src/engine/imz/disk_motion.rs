@@ -1,5 +1,6 @@
 //! What the marker pass reads of each disk after an update: its motion ([`DiskMotion`])
-//! and the constants worked out from it once per disk ([`PerDisk`]).
+//! and the constants worked out from it once per disk ([`PerDisk`]), its vertical profile
+//! among them ([`Profile`]).
 
 use super::SHAPE_MODES;
 
@@ -37,14 +38,130 @@ pub struct DiskMotion {
 }
 
 /// A disk's constants of the marker pass, worked out once per disk and update
-/// (`engine::markers::prepare`) instead of once per marker in it.
+/// (`engine::markers::prepare`) instead of once per marker in it, so that the pass
+/// multiplies where the formulas divide.
 #[derive(Debug, Clone, Copy, Default, serde::Serialize, serde::Deserialize)]
 pub struct PerDisk {
+    /// The disk's vertical profile.
+    pub profile: Profile,
+    /// The plug's descent per unit void, c / (π A_f) (the void fills the flowable share A_f
+    /// of the disk only), 1/m².
+    pub fall: f64,
     /// Plan area the dilating ring takes from the interior, (Δv_i − Δv_out) / (h f), m².
     pub take: f64,
+    /// Whether the ring pushes in: the disk widened (R > R^old > 0) and absorbed void
+    /// (`take` > 0).
+    pub widened: bool,
     /// The ring's inward push at R^old, take F(R^old) / (2π R^old), m (0 where the disk
     /// did not widen).
     pub push: f64,
+    /// 1 / R^old and 1 / (R − R^old) where the disk widened (0 otherwise), 1/m.
+    pub inv_r_old: f64,
+    /// See `inv_r_old`.
+    pub inv_dr: f64,
     /// Whether the ring's dilation differs around the perimeter (a lateral move).
     pub lateral: bool,
+}
+
+/// The shape of a disk's vertical velocity profile (summary §3.3): a plug of radius
+/// R_p = R − w descending at the full speed inside a shear annulus of width w in which the
+/// speed falls linearly to zero at R; a cone (R_p = 0, the band the whole radius) when
+/// R ≤ w. With void Δv passed into the disk, the plug descends Δv c / π, where
+/// c = 3 / (R² + R R_p + R_p²) makes the frustum's volume Δv.
+#[derive(Debug, Clone, Copy, Default, serde::Serialize, serde::Deserialize)]
+pub struct Profile {
+    /// R_i, m.
+    pub r: f64,
+    /// R_p, m.
+    pub rp: f64,
+    /// 1 / the band's width (w, or R for a cone), 1/m.
+    pub inv_band: f64,
+    /// c, 1/m².
+    pub c: f64,
+}
+
+impl Profile {
+    /// The profile of a disk of radius `r` with shear band `w` (all zero without a radius).
+    pub fn new(r: f64, w: f64) -> Profile {
+        if !(r > 0.0) {
+            return Profile::default();
+        }
+        let (rp, band) = if r <= w { (0.0, r) } else { (r - w, w) };
+        Profile {
+            r,
+            rp,
+            inv_band: 1.0 / band.max(1e-12),
+            c: 3.0 / (r * r + r * rp + rp * rp),
+        }
+    }
+
+    /// The speed at radius `a` relative to the plug's: 1 in the plug, falling linearly to 0
+    /// at R, 0 beyond.
+    #[inline]
+    pub fn shape(&self, a: f64) -> f64 {
+        if a > self.r {
+            0.0
+        } else if a <= self.rp {
+            1.0
+        } else {
+            1.0 - (a - self.rp) * self.inv_band
+        }
+    }
+
+    /// Vertical displacement Δz_m of a marker at radius `a`, with void `dv` passed into the
+    /// disk (in open ground, A_f = 1).
+    #[inline]
+    pub fn vertical(&self, dv: f64, a: f64) -> f64 {
+        -dv * self.c * std::f64::consts::FRAC_1_PI * self.shape(a)
+    }
+
+    /// Share F(a) of the disk's vertical flux that passes inside radius `a`:
+    /// ∫₀^a |Δz(a′)| 2π a′ da′ / Δv, 0 at the axis and 1 at R (1 without a radius).
+    #[inline]
+    pub fn flux_inside(&self, a: f64) -> f64 {
+        if !(self.r > 0.0) {
+            return 1.0;
+        }
+        let (a, rp) = (a.clamp(0.0, self.r), self.rp);
+        if a <= rp {
+            self.c * a * a
+        } else {
+            let (a2, p2) = (a * a, rp * rp);
+            self.c * (a2 - 2.0 * ((a2 * a - p2 * rp) / 3.0 - 0.5 * rp * (a2 - p2)) * self.inv_band)
+        }
+    }
+
+    /// The radius at which the share `f` of the flux passes inside ([`Profile::flux_inside`]
+    /// inverted): a square root in the plug, Newton's method kept inside a shrinking
+    /// bracket in the shear annulus (F is increasing in a).
+    pub fn radius_at_share(&self, f: f64) -> f64 {
+        let (f, rp, c) = (f.clamp(0.0, 1.0), self.rp, self.c);
+        if f <= c * rp * rp {
+            return (f / c).sqrt();
+        }
+        let (mut lo, mut hi) = (rp, self.r);
+        let mut a = (f / c).sqrt().clamp(lo, hi);
+        for _ in 0..40 {
+            let g = self.flux_inside(a) - f;
+            if g.abs() <= 1e-13 {
+                break;
+            }
+            if g < 0.0 {
+                lo = a;
+            } else {
+                hi = a;
+            }
+            let slope = 2.0 * a * c * self.shape(a);
+            let next = a - g / slope;
+            a = if slope > 0.0 && next > lo && next < hi {
+                next
+            } else {
+                0.5 * (lo + hi)
+            };
+            if hi - lo <= 1e-12 * self.r {
+                break;
+            }
+        }
+        a
+    }
 }

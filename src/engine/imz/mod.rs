@@ -124,7 +124,7 @@ use std::f64::consts::PI;
 
 use super::cadence::Window;
 
-pub use disk_motion::{DiskMotion, PerDisk};
+pub use disk_motion::{DiskMotion, PerDisk, Profile};
 pub use geom::{ImzGeom, ImzGrid};
 pub use ground::{Ground, Stagnant};
 

@@ -17,6 +17,9 @@
 //! - Vertical, cone (R_i ≤ w_i): Δz = −3 Δv_i (1 − a_m/R_i) / (π R_i²).
 //! - Vertical, frustum (R_i > w_i, plug radius R_p = R_i − w_i):
 //!   plug Δz = −3 Δv_i / (π (R_i² + R_i R_p + R_p²)); annulus the same × (1 − (a_m − R_p)/w_i).
+//!   Each disk's profile ([`Profile`](crate::engine::imz::Profile)) and the other constants of
+//!   this list are worked out once per disk and update ([`prepare`]), so a marker's moves
+//!   multiply where these formulas divide.
 //! - Radial, from disk expansion ΔR_i = R_i − R_i^old. The ring R_i^old → R_i is stagnant
 //!   ground at n0 that dilates to n1 (`engine::imz`, the volume balance): it swells inward
 //!   by the void the disk absorbed, v_a = Δv_i − Δv_out (the void in through its base less
@@ -93,7 +96,7 @@ use super::cadence::Cadence;
 
 pub use bins::Bins;
 pub use lattice::Lattice;
-pub use motion::{flux_inside, lateral, prepare, radial, vertical, MotionField, Step, WallReach};
+pub use motion::{lateral, prepare, radial, MotionField, Step, WallReach};
 
 /// Mobilised markers, struct of arrays. Row order is an implementation detail; `id` is
 /// the stable identity (the lattice site).

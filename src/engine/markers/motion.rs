@@ -8,7 +8,7 @@ use rayon::prelude::*;
 
 use super::super::random::{marker_rng, TRANSFER_STREAM};
 
-use super::super::imz::{DiskMotion, ImzGeom, ImzGrid, PerDisk};
+use super::super::imz::{DiskMotion, ImzGeom, ImzGrid, PerDisk, Profile};
 use crate::model::BlockModel;
 
 /// Read-only view of the drawing IMZs for one marker update.
@@ -127,81 +127,6 @@ pub struct Step {
     pub perc: f64,
 }
 
-/// Vertical displacement Δz_m of a marker at radius `a` in a disk of radius `r`, shear
-/// band `w`, with void `dv` passed into it (cone when R ≤ w, frustum otherwise).
-#[inline]
-pub fn vertical(dv: f64, r: f64, w: f64, a: f64) -> f64 {
-    if r <= 0.0 || a > r {
-        return 0.0;
-    }
-    if r <= w {
-        -3.0 * dv * (1.0 - a / r) / (std::f64::consts::PI * r * r)
-    } else {
-        let rp = r - w;
-        let plug = -3.0 * dv / (std::f64::consts::PI * (r * r + r * rp + rp * rp));
-        if a <= rp {
-            plug
-        } else {
-            plug * (1.0 - (a - rp) / w)
-        }
-    }
-}
-
-/// Share F(a) of a disk's vertical flux ([`vertical`]) that passes inside radius `a`:
-/// ∫₀^a |Δz(a′)| 2π a′ da′ / Δv, 0 at the axis and 1 at the disk's radius `r`.
-#[inline]
-pub fn flux_inside(r: f64, w: f64, a: f64) -> f64 {
-    if !(r > 0.0) {
-        return 1.0;
-    }
-    let a = a.clamp(0.0, r);
-    // The cone is the frustum with no plug and a band as wide as the disk.
-    let (rp, w) = if r <= w { (0.0, r) } else { (r - w, w) };
-    let c = 3.0 / (r * r + r * rp + rp * rp);
-    if a <= rp {
-        c * a * a
-    } else {
-        let (a2, p2) = (a * a, rp * rp);
-        c * (p2 + (a2 - p2) - 2.0 * ((a2 * a - p2 * rp) / 3.0 - 0.5 * rp * (a2 - p2)) / w)
-    }
-}
-
-/// The radius at which the share `f` of a disk's vertical flux passes inside
-/// ([`flux_inside`] inverted): a square root in the plug, Newton's method kept inside a
-/// shrinking bracket in the shear annulus (F is increasing in a).
-fn radius_at_share(r: f64, w: f64, f: f64) -> f64 {
-    let f = f.clamp(0.0, 1.0);
-    let (rp, band) = if r <= w { (0.0, r) } else { (r - w, w) };
-    let c = 3.0 / (r * r + r * rp + rp * rp);
-    if f <= c * rp * rp {
-        return (f / c).sqrt();
-    }
-    let (mut lo, mut hi) = (rp, r);
-    let mut a = (f / c).sqrt().clamp(lo, hi);
-    for _ in 0..40 {
-        let g = flux_inside(r, w, a) - f;
-        if g.abs() <= 1e-13 {
-            break;
-        }
-        if g < 0.0 {
-            lo = a;
-        } else {
-            hi = a;
-        }
-        let slope = 2.0 * a * c * (1.0 - (a - rp) / band);
-        let next = a - g / slope;
-        a = if slope > 0.0 && next > lo && next < hi {
-            next
-        } else {
-            0.5 * (lo + hi)
-        };
-        if hi - lo <= 1e-12 * r {
-            break;
-        }
-    }
-    a
-}
-
 /// The transfer (Δa′, Δz′) of a marker at radius `a` in disk `here` that the update carried
 /// `depth` below the disk's base, into the disk `below`.
 ///
@@ -216,9 +141,10 @@ fn radius_at_share(r: f64, w: f64, f: f64) -> f64 {
 /// there (by 20–80% near the base of an isolated IMZ). It also applies where the disk
 /// below is the wider one, which the summary leaves unmoved.
 fn transfer(here: &DiskMotion, below: &DiskMotion, a: f64, depth: f64) -> (f64, f64) {
+    let (p_here, p_below) = (&here.per_disk.profile, &below.per_disk.profile);
     let a = a.min(here.r);
-    let a_new = radius_at_share(below.r, below.w, flux_inside(here.r, here.w, a));
-    let speed = |m: &DiskMotion, a: f64| -vertical(1.0, m.r, m.w, a) / m.area_frac;
+    let a_new = p_below.radius_at_share(p_here.flux_inside(a));
+    let speed = |m: &DiskMotion, a: f64| m.per_disk.fall * m.per_disk.profile.shape(a);
     let (v_here, v_below) = (speed(here, a), speed(below, a_new));
     // At the very rim both speeds vanish; their ratio tends to the ratio of the areas.
     let stretch = if v_here > 1e-9 * speed(here, 0.0) {
@@ -229,33 +155,36 @@ fn transfer(here: &DiskMotion, below: &DiskMotion, a: f64, depth: f64) -> (f64, 
     (a_new - a, -depth * (stretch - 1.0))
 }
 
-/// Inward radial displacement (negative) of a marker at radius `a` in a disk of radius `r`
-/// and shear band `w` that expanded from `r_old` to `r_new`, its dilating ring taking
+/// Inward radial displacement (negative) of a marker at radius `a` (`inv_a` = 1/a, 0 at
+/// the axis) in disk `m` that expanded from R^old to R, its dilating ring taking
 /// `take` of plan area from the interior (the void the disk absorbed over its height and
 /// its flowable share of the perimeter; see the module docs).
 ///
 /// Inside R_old the squeeze follows the vertical move's profile: the ring of radius a
-/// loses the share F(a) ([`flux_inside`]) of `take`, so u(a) = −take F(a) / (2π a), and
+/// loses the share F(a) ([`Profile::flux_inside`]) of `take`, so u(a) = −take F(a) / (2π a), and
 /// each streamtube's squeeze is its vertical stretch. Between R_old and the new radius it
 /// falls linearly to zero. At most half a marker's radius is taken in one step (only a
 /// disk that more than doubles its radius in a step asks for more).
+///
+/// `m.per_disk` must be prepared ([`prepare`]).
 #[inline]
-pub fn radial(r_old: f64, r_new: f64, r: f64, w: f64, take: f64, a: f64) -> f64 {
-    let dr = r_new - r_old;
-    if dr <= 0.0 || a > r_new || !(take > 0.0) || !(r_old > 0.0) || !(a > 0.0) {
+pub fn radial(m: &DiskMotion, a: f64, inv_a: f64) -> f64 {
+    let p = &m.per_disk;
+    if !p.widened || a > m.r || !(a > 0.0) {
         return 0.0;
     }
-    let at = |a: f64| (take * flux_inside(r, w, a) / (2.0 * std::f64::consts::PI * a)).min(0.5 * a);
-    if a > r_old {
-        -at(r_old) * (1.0 - (a - r_old) / dr)
+    if a > m.r_old {
+        -p.push.min(0.5 * m.r_old) * (1.0 - (a - m.r_old) * p.inv_dr)
     } else {
-        -at(a)
+        let u = p.take * p.profile.flux_inside(a) * (0.5 * std::f64::consts::FRAC_1_PI) * inv_a;
+        -u.min(0.5 * a)
     }
 }
 
 /// Lateral move (dx, dy) of a marker at offset (ex, ey) from the axis of a disk that
-/// expanded from `m.r_old` to `m.r`, its ring taking `take` of plan area from the interior
-/// ([`radial`]'s), where the ring's dilation is not the same all round (`m.shape`).
+/// expanded from `m.r_old` to `m.r`, at radius `a` on the ray of unit vector `u`, its ring
+/// taking `take` of plan area from the interior ([`radial`]'s), where the ring's dilation
+/// is not the same all round (`m.shape`).
 ///
 /// [`radial`] pushes the same on every ray, as if the whole ring were stagnant ground at
 /// the mean jump. Where part of the perimeter lies inside another IMZ (already at n1) that
@@ -271,17 +200,17 @@ pub fn radial(r_old: f64, r_new: f64, r: f64, w: f64, take: f64, a: f64) -> f64 
 ///
 /// `m.per_disk` must be prepared ([`prepare`]).
 #[inline]
-pub fn lateral(m: &DiskMotion, ex: f64, ey: f64, a: f64) -> (f64, f64) {
-    let (r_old, r) = (m.r_old, m.r);
-    if !m.per_disk.lateral || a > r {
+pub fn lateral(m: &DiskMotion, ex: f64, ey: f64, a: f64, u: [f64; 2]) -> (f64, f64) {
+    let (r_old, p) = (m.r_old, &m.per_disk);
+    if !p.lateral || a > m.r {
         return (0.0, 0.0);
     }
     // u_a(R_old, θ) = s Σ α_k cos kθ + β_k sin kθ: the uniform push at R_old times w − 1.
-    let s = -m.per_disk.push;
+    let s = -p.push;
     let (scale, tx, ty) = if a <= r_old {
-        (s, ex / r_old, ey / r_old)
+        (s, ex * p.inv_r_old, ey * p.inv_r_old)
     } else {
-        (s * (r - a) / (r - r_old), ex / a, ey / a)
+        (s * (m.r - a) * p.inv_dr, u[0], u[1])
     };
     // W'(z) = s Σ (α_k − i β_k) t^(k−1), t = z / R_old; u = (Re W', −Im W').
     let (mut wr, mut wi) = (0.0, 0.0);
@@ -304,22 +233,27 @@ pub fn lateral(m: &DiskMotion, ex: f64, ey: f64, a: f64) -> (f64, f64) {
 
 /// Fills each disk's constants of the marker pass ([`PerDisk`]) from its motion, for IMZ
 /// disks of thickness `h`: the same for every marker the disk moves, so the pass reads
-/// them instead of working them out per marker (with the same arithmetic: the moves are
-/// bit for bit those of the formulas in [`radial`] and [`lateral`]).
+/// them instead of working them out per marker.
 pub fn prepare(motion: &mut [DiskMotion], h: f64) {
     for m in motion {
+        let profile = Profile::new(m.r, m.w);
         let take = (m.dv - m.dv_out) / (h * m.flow_frac);
         let widened = m.r > m.r_old && m.r_old > 0.0 && take > 0.0;
-        let push = if widened {
-            take * flux_inside(m.r, m.w, m.r_old) / (2.0 * std::f64::consts::PI * m.r_old)
+        let (push, inv_r_old, inv_dr) = if widened {
+            let push = take * profile.flux_inside(m.r_old) / (2.0 * std::f64::consts::PI * m.r_old);
+            (push, 1.0 / m.r_old, 1.0 / (m.r - m.r_old))
         } else {
-            0.0
+            (0.0, 0.0, 0.0)
         };
-        let lateral = widened && m.shape.iter().any(|&c| c != 0.0);
         m.per_disk = PerDisk {
+            profile,
+            fall: profile.c / (std::f64::consts::PI * m.area_frac),
             take,
+            widened,
             push,
-            lateral,
+            inv_r_old,
+            inv_dr,
+            lateral: widened && m.shape.iter().any(|&c| c != 0.0),
         };
     }
 }
@@ -439,13 +373,11 @@ impl MotionField<'_> {
                 // so the move is divided by it.
                 let t_in = t - i as f64;
                 let dv = m.dv + (m.dv_out - m.dv) * t_in;
-                let dz = k * vertical(dv, m.r, m.w, a) / m.area_frac;
-                let (ux, uy) = if a > 0.0 {
-                    (ex / a, ey / a)
-                } else {
-                    (0.0, 0.0)
-                };
-                let mut da = k * radial(m.r_old, m.r, m.r, m.w, m.per_disk.take, a);
+                let pd = &m.per_disk;
+                let dz = -k * dv * pd.fall * pd.profile.shape(a);
+                let inv_a = if a > 0.0 { 1.0 / a } else { 0.0 };
+                let (ux, uy) = (ex * inv_a, ey * inv_a);
+                let mut da = k * radial(m, a, inv_a);
                 // The inward move is the dilating ring pushing in along the marker's ray. In a
                 // disk cut by a wall or uncaved ground (A_f < 1) there is no ring on a ray that
                 // leaves the flowable ground before the new radius, so nothing pushes there
@@ -459,7 +391,7 @@ impl MotionField<'_> {
                         }
                     }
                 }
-                let (lx, ly) = lateral(m, ex, ey, a);
+                let (lx, ly) = lateral(m, ex, ey, a, [ux, uy]);
                 let (lx, ly) = (k * lx, k * ly);
                 st.dx += sx * (da * ux + lx);
                 st.dy += sy * (da * uy + ly);
@@ -483,7 +415,7 @@ impl MotionField<'_> {
                 }
                 // Shear strain in the annulus (a > R − w; the whole disk when R ≤ w).
                 if a > m.r - m.w {
-                    let gamma = dz.abs() / m.r.min(m.w).max(1e-12);
+                    let gamma = dz.abs() * pd.profile.inv_band;
                     st.strain += gamma;
                     st.work += gamma * m.sigma_n;
                     st.dbar += gamma * m.d;
@@ -732,7 +664,7 @@ mod tests {
             let mut vol = 0.0;
             for k in 0..n {
                 let a = (k as f64 + 0.5) * r / n as f64;
-                vol += vertical(dv, r, w, a) * 2.0 * PI * a * (r / n as f64);
+                vol += Profile::new(r, w).vertical(dv, a) * 2.0 * PI * a * (r / n as f64);
             }
             assert!((vol + dv).abs() < 1e-6 * dv, "r={r} w={w}: {vol}");
         }
@@ -746,9 +678,9 @@ mod tests {
             let mut vol = 0.0;
             for k in 0..n {
                 let a = (k as f64 + 0.5) * r / n as f64;
-                vol -= vertical(1.0, r, w, a) * 2.0 * PI * a * (r / n as f64);
+                vol -= Profile::new(r, w).vertical(1.0, a) * 2.0 * PI * a * (r / n as f64);
                 if (k + 1) % 2000 == 0 {
-                    let f = flux_inside(r, w, (k + 1) as f64 * r / n as f64);
+                    let f = Profile::new(r, w).flux_inside((k + 1) as f64 * r / n as f64);
                     assert!(
                         (f - vol).abs() < 1e-6,
                         "r {r} w {w} a {}: {f} vs {vol}",
@@ -757,17 +689,36 @@ mod tests {
                 }
             }
         }
-        assert_eq!(flux_inside(2.0, 1.0, 0.0), 0.0);
-        assert_eq!(flux_inside(2.0, 1.0, 3.0), flux_inside(2.0, 1.0, 2.0));
+        assert_eq!(Profile::new(2.0, 1.0).flux_inside(0.0), 0.0);
+        assert_eq!(
+            Profile::new(2.0, 1.0).flux_inside(3.0),
+            Profile::new(2.0, 1.0).flux_inside(2.0)
+        );
         // And its inverse, in the plug, the annulus and the cone.
         for &(r, w) in &[(1.0, 2.0), (3.0, 1.0), (5.0, 0.5)] {
             for k in 0..=20 {
                 let a = r * k as f64 / 20.0;
                 // At the rim F is flat (1 − F ∝ (r − a)²), so a is found to √ε there.
-                let back = radius_at_share(r, w, flux_inside(r, w, a));
+                let back = Profile::new(r, w).radius_at_share(Profile::new(r, w).flux_inside(a));
                 assert!((back - a).abs() < 1e-6 * r, "r {r} w {w}: {a} → {back}");
             }
         }
+    }
+
+    /// A disk of shear band `w` in open ground that widened from `r_old` to `r`, its ring
+    /// taking `take` of plan area from the interior, prepared.
+    fn widened_disk(r_old: f64, r: f64, w: f64, take: f64) -> DiskMotion {
+        let mut m = [DiskMotion {
+            r,
+            r_old,
+            dv: take,
+            w,
+            area_frac: 1.0,
+            flow_frac: 1.0,
+            ..Default::default()
+        }];
+        prepare(&mut m, 1.0);
+        m[0]
     }
 
     #[test]
@@ -778,24 +729,26 @@ mod tests {
         // order in ΔR.
         let (r0, r1, w, eps) = (2.0, 2.01, 0.5, 0.15 / 0.55);
         let take = eps * PI * (r1 * r1 - r0 * r0);
-        let peak = -radial(r0, r1, r1, w, take, r0);
-        let f = flux_inside(r1, w, r0);
+        let m = widened_disk(r0, r1, w, take);
+        let radial_at = |m: &DiskMotion, a: f64| radial(m, a, if a > 0.0 { 1.0 / a } else { 0.0 });
+        let peak = -radial_at(&m, r0);
+        let f = Profile::new(r1, w).flux_inside(r0);
         assert!(f > 0.99 && f < 1.0, "{f}");
         assert!((peak / ((r1 - r0) * eps * f) - 1.0).abs() < 0.01, "{peak}");
         // Streamtube by streamtube, the area inside a loses take × F(a): 2π a u(a).
         for a in [0.1, 0.7, 1.5, 1.9] {
-            let u = radial(r0, r1, r1, w, take, a);
-            assert!((2.0 * PI * a * u + take * flux_inside(r1, w, a)).abs() < 1e-12);
+            let u = radial_at(&m, a);
+            assert!((2.0 * PI * a * u + take * Profile::new(r1, w).flux_inside(a)).abs() < 1e-12);
         }
         // Zero at the axis and at R_new; nothing without absorbed void, nor in a new disk.
-        assert_eq!(radial(r0, r1, r1, w, take, 0.0), 0.0);
-        assert!(radial(r0, r1, r1, w, take, r1).abs() < 1e-12);
-        assert_eq!(radial(r0, r1, r1, w, 0.0, r0), 0.0);
+        assert_eq!(radial_at(&m, 0.0), 0.0);
+        assert!(radial_at(&m, r1).abs() < 1e-12);
+        assert_eq!(radial_at(&widened_disk(r0, r1, w, 0.0), r0), 0.0);
         for k in 1..=10 {
             let a = 0.1 * k as f64;
-            assert_eq!(radial(0.0, 1.0, 1.0, w, 0.5, a), 0.0);
+            assert_eq!(radial_at(&widened_disk(0.0, 1.0, w, 0.5), a), 0.0);
             // A squeeze larger than the interior takes at most half a marker's radius.
-            assert!(a + radial(0.5, 1.0, 1.0, w, 10.0, a) >= 0.5 * a - 1e-12);
+            assert!(a + radial_at(&widened_disk(0.5, 1.0, w, 10.0), a) >= 0.5 * a - 1e-12);
         }
     }
 
@@ -1037,8 +990,8 @@ mod tests {
         // The split at a point nearer A's axis.
         let p = [2.3, 0.4, z];
         let (va, vb) = (
-            vertical(0.6, 3.0, 1.0, p[0].hypot(p[1])),
-            vertical(0.6, 3.0, 1.0, (5.0 - p[0]).hypot(p[1])),
+            Profile::new(3.0, 1.0).vertical(0.6, p[0].hypot(p[1])),
+            Profile::new(3.0, 1.0).vertical(0.6, (5.0 - p[0]).hypot(p[1])),
         );
         let share = va / (va + vb);
         let n = 4000;
