@@ -373,6 +373,14 @@ fn validate(a: InputArgs) -> Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
+/// Runs `f` on a worker thread of rayon's global pool. The engine's parallel passes then
+/// start from a worker, which takes its share of each pass, instead of from a thread that
+/// waits while the pool's workers are woken for every pass: the mine scene's run takes
+/// 0.97 times the wall time, with byte-identical outputs (`docs::performance`).
+fn on_pool<R: Send>(f: impl FnOnce() -> R + Send) -> R {
+    rayon::join(f, || ()).0
+}
+
 fn run(a: RunArgs) -> Result<ExitCode> {
     let started = Instant::now();
     let mut sc = scenario(&a.input)?;
@@ -433,20 +441,22 @@ fn run(a: RunArgs) -> Result<ExitCode> {
     bar.set_position(first as u64);
     let (every, minutes) = (a.checkpoint_every, a.checkpoint_minutes);
     let mut last = std::time::Instant::now();
-    let out = engine.run_from(
-        first,
-        &mut |done, _| bar.set_position(done as u64),
-        &mut |e: &Engine, next: usize| -> Result<()> {
-            let by_periods = every > 0 && next % every == 0;
-            let by_time = minutes > 0.0 && last.elapsed().as_secs_f64() >= 60.0 * minutes;
-            if (by_periods || by_time) && next < scene.periods.len() {
-                std::fs::create_dir_all(dir).with_context(|| dir.display().to_string())?;
-                output::write_atomic(&checkpoint, &e.checkpoint(next, &tag))?;
-                last = std::time::Instant::now();
-            }
-            Ok(())
-        },
-    )?;
+    let out = on_pool(|| {
+        engine.run_from(
+            first,
+            &mut |done, _| bar.set_position(done as u64),
+            &mut |e: &Engine, next: usize| -> Result<()> {
+                let by_periods = every > 0 && next % every == 0;
+                let by_time = minutes > 0.0 && last.elapsed().as_secs_f64() >= 60.0 * minutes;
+                if (by_periods || by_time) && next < scene.periods.len() {
+                    std::fs::create_dir_all(dir).with_context(|| dir.display().to_string())?;
+                    output::write_atomic(&checkpoint, &e.checkpoint(next, &tag))?;
+                    last = std::time::Instant::now();
+                }
+                Ok(())
+            },
+        )
+    })?;
     bar.finish_and_clear();
     let command = std::env::args().collect::<Vec<_>>().join(" ");
     let moments = scene.moments(&sc.outputs.section_periods);
