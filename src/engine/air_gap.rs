@@ -82,7 +82,8 @@ impl Engine<'_> {
                 }
             }
         }
-        // Each row's block is found in parallel; the masses are then summed in row order.
+        // Each row's block is found in parallel; the masses are then summed exactly, in
+        // fixed point, so that the sums do not depend on the rows' order.
         let mk = &self.markers;
         let blocks: Vec<u32> = self
             .rows
@@ -95,9 +96,15 @@ impl Engine<'_> {
                     .map_or(u32::MAX, |b| b as u32)
             })
             .collect();
+        let mut fixed = vec![0i64; mass.len()];
         for (&k, &b) in self.rows.iter().zip(&blocks) {
             if b != u32::MAX {
-                mass[b as usize] += mk.mass[k as usize];
+                fixed[b as usize] += (mk.mass[k as usize] * FIXED).round() as i64;
+            }
+        }
+        for (m, &f) in mass.iter_mut().zip(&fixed) {
+            if f != 0 {
+                *m += f as f64 / FIXED;
             }
         }
         let fill = self.scenario.rilling.air_fill;
@@ -135,3 +142,6 @@ impl Engine<'_> {
         }
     }
 }
+
+/// Units per tonne of the air gap's exact mass sums: 2^32 (a block of 10^6 t is 2^52 units).
+const FIXED: f64 = 4294967296.0;

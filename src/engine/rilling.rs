@@ -185,7 +185,7 @@ pub fn rill(st: &mut RillState) -> RillStats {
     }
     let mk = &*st.markers;
     for v in &mut stacks {
-        v.sort_by(|&a, &b| mk.z[a].total_cmp(&mk.z[b]).then(a.cmp(&b)));
+        v.sort_by(|&a, &b| mk.z[a].total_cmp(&mk.z[b]).then(mk.id[a].cmp(&mk.id[b])));
     }
     let mut in_situ: Vec<f64> = (0..nx * ny)
         .map(|c| in_situ_top(&lat, bm, st.period, st.engulfed, c % nx, c / nx, lat.n[2]))

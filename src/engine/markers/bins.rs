@@ -28,6 +28,9 @@ pub struct Bins {
     at: Vec<(u32, u32)>,
     /// Scratch bit set over rows, to list rows in ascending order.
     bits: Vec<u64>,
+    /// Rows binned or drawn since the last [`Bins::sort`] (new, moved to another cell, or
+    /// filled by the last row): how far the rows have left the sorted order.
+    unsorted: usize,
 }
 
 impl Bins {
@@ -45,6 +48,7 @@ impl Bins {
             lists: vec![Vec::new(); n[0] * n[1] + 1],
             at: Vec::new(),
             bits: Vec::new(),
+            unsorted: 0,
         }
     }
 
@@ -132,6 +136,7 @@ impl Bins {
     }
 
     fn put(&mut self, row: usize, c: usize) {
+        self.unsorted += 1;
         let list = &mut self.lists[c];
         self.at[row] = (c as u32, list.len() as u32);
         list.push(row as u32);
@@ -182,8 +187,47 @@ impl Bins {
         self.update(mk, &all, &mut cells);
     }
 
+    /// Sorts the rows (by cell and height, `Bins::sort`) once a tenth of them have left
+    /// that order.
+    pub fn tidy(&mut self, mk: &mut Markers) {
+        if self.unsorted > mk.len() / 10 {
+            self.sort(mk);
+        }
+    }
+
+    /// Reorders the rows of `mk` cell by cell, and by height in bands of 1/16 m within a
+    /// cell ([`Markers::permute`]), and bins them again.
+    ///
+    /// A marker update visits the rows in ascending order, and each visit reads the IMZs
+    /// its cell lists and their disks at its height. Rows drawn (the last row takes their
+    /// place) and rows engulfed (appended) leave the rows in no spatial order within a few
+    /// hundred periods, and every visit then fetches its IMZs' geometry and motion anew;
+    /// sorted, consecutive rows share them, and they stay in cache. Row order changes no
+    /// result: every sum over markers is taken in the order of their ids or exactly
+    /// (`docs::performance`, "What changed").
+    fn sort(&mut self, mk: &mut Markers) {
+        let mut key: Vec<(u32, i64, u32)> = (0..mk.len())
+            .into_par_iter()
+            .map(|k| {
+                let c = self.cell_of(mk.x[k], mk.y[k]) as u32;
+                (c, (mk.z[k] * 16.0).floor() as i64, k as u32)
+            })
+            .collect();
+        key.par_sort_unstable();
+        let perm: Vec<u32> = key.iter().map(|t| t.2).collect();
+        mk.permute(&perm);
+        self.lists.iter_mut().for_each(Vec::clear);
+        self.at.clear();
+        for (row, &(c, _, _)) in key.iter().enumerate() {
+            self.at.push((0, 0));
+            self.put(row, c as usize);
+        }
+        self.unsorted = 0;
+    }
+
     /// Mirrors [`Markers::take_into`]: row `k` leaves and the last row takes its place.
     pub fn swap_remove(&mut self, k: usize) {
+        self.unsorted += 1;
         self.unlink(k);
         let last = self.at.len() - 1;
         if k != last {
@@ -222,5 +266,78 @@ impl Bins {
                 b &= b - 1;
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Whether the rows are in the order of their cells and heights.
+    fn sorted(bins: &Bins, mk: &Markers) -> bool {
+        let key = |k: usize| {
+            (
+                bins.cell_of(mk.x[k], mk.y[k]),
+                (mk.z[k] * 16.0).floor() as i64,
+            )
+        };
+        (1..mk.len()).all(|k| key(k - 1) <= key(k))
+    }
+
+    /// Sorting lists each cell's rows as one run of rows, by height within it, keeps every
+    /// marker (the same ids at the same positions) and leaves the bins consistent with the
+    /// rows; `tidy` sorts only once a tenth of the rows have left the order.
+    #[test]
+    fn sorting_groups_the_rows_by_cell_and_height() {
+        let mut mk = Markers::default();
+        // 400 markers scattered over 4 × 4 cells of 10 m, ids in no spatial order.
+        for k in 0..400u64 {
+            let h = k.wrapping_mul(2654435761) % 1000;
+            let p = [(h % 40) as f64 + 0.5, (h / 25) as f64, (k % 7) as f64];
+            mk.push(k, p, 1.0, 0, 0.1);
+        }
+        let before: Vec<(u64, [u64; 3])> = (0..mk.len())
+            .map(|k| (mk.id[k], [mk.x[k], mk.y[k], mk.z[k]].map(f64::to_bits)))
+            .collect();
+        let mut bins = Bins::new([0.0, 0.0], [40.0, 40.0], 10.0);
+        bins.sync(&mk);
+        bins.tidy(&mut mk);
+        assert_eq!(bins.unsorted, 0);
+        let mut after: Vec<(u64, [u64; 3])> = (0..mk.len())
+            .map(|k| (mk.id[k], [mk.x[k], mk.y[k], mk.z[k]].map(f64::to_bits)))
+            .collect();
+        after.sort_unstable();
+        assert_eq!(after, before);
+        assert!(sorted(&bins, &mk));
+        let mut seen = 0;
+        for c in 0..=bins.n_cells() {
+            let mut rows = Vec::new();
+            bins.rows_in(&[c], &mut rows);
+            assert!(
+                rows.windows(2).all(|w| w[1] == w[0] + 1),
+                "cell {c}: {rows:?}"
+            );
+            assert!(rows
+                .iter()
+                .all(|&k| bins.cell_of(mk.x[k as usize], mk.y[k as usize]) == c));
+            seen += rows.len();
+        }
+        assert_eq!(seen, mk.len());
+        // Thirty rows drawn: fewer than a tenth, so no sort; then twenty more.
+        let mut drawn = Markers::default();
+        for k in (0..30).rev() {
+            mk.take_into(k * 13, &mut drawn);
+            bins.swap_remove(k * 13);
+        }
+        let order = mk.id.clone();
+        bins.tidy(&mut mk);
+        assert_eq!(mk.id, order);
+        for k in (0..20).rev() {
+            mk.take_into(k * 17, &mut drawn);
+            bins.swap_remove(k * 17);
+        }
+        assert!(!sorted(&bins, &mk));
+        bins.tidy(&mut mk);
+        assert!(sorted(&bins, &mk));
     }
 }

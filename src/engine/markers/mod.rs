@@ -98,8 +98,9 @@ pub use bins::Bins;
 pub use lattice::Lattice;
 pub use motion::{lateral, prepare, radial, MotionField, Step, WallReach};
 
-/// Mobilised markers, struct of arrays. Row order is an implementation detail; `id` is
-/// the stable identity (the lattice site).
+/// Mobilised markers, struct of arrays. `id` is the stable identity (the lattice site);
+/// row order changes no result (every sum over markers is taken in the order of their ids,
+/// or exactly), so [`Bins::tidy`] may reorder the rows for the cache.
 #[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
 pub struct Markers {
     /// Marker id (lattice site index).
@@ -178,6 +179,51 @@ impl Markers {
         ]
         .iter()
         .all(|&l| l == n)
+    }
+
+    /// Reorders the rows: row k takes the old row `perm[k]` (`perm` a permutation of the
+    /// rows).
+    pub fn permute(&mut self, perm: &[u32]) {
+        fn gather<T: Copy + Send + Sync>(v: &mut Vec<T>, perm: &[u32]) {
+            let new: Vec<T> = if perm.len() < 1 << 14 {
+                perm.iter().map(|&k| v[k as usize]).collect()
+            } else {
+                perm.par_iter().map(|&k| v[k as usize]).collect()
+            };
+            *v = new;
+        }
+        gather(&mut self.id, perm);
+        gather(&mut self.x, perm);
+        gather(&mut self.y, perm);
+        gather(&mut self.z, perm);
+        gather(&mut self.mass, perm);
+        gather(&mut self.block, perm);
+        gather(&mut self.frag, perm);
+        gather(&mut self.strain, perm);
+        gather(&mut self.work, perm);
+        gather(&mut self.rill, perm);
+        gather(&mut self.frag0, perm);
+        gather(&mut self.attrited, perm);
+        gather(&mut self.percolated, perm);
+        gather(&mut self.level, perm);
+    }
+
+    /// Moves every row of `other` to the end of these.
+    pub fn append(&mut self, other: &mut Markers) {
+        self.id.append(&mut other.id);
+        self.x.append(&mut other.x);
+        self.y.append(&mut other.y);
+        self.z.append(&mut other.z);
+        self.mass.append(&mut other.mass);
+        self.block.append(&mut other.block);
+        self.frag.append(&mut other.frag);
+        self.strain.append(&mut other.strain);
+        self.work.append(&mut other.work);
+        self.rill.append(&mut other.rill);
+        self.frag0.append(&mut other.frag0);
+        self.attrited.append(&mut other.attrited);
+        self.percolated.append(&mut other.percolated);
+        self.level.append(&mut other.level);
     }
 
     /// Appends a marker.
