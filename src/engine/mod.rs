@@ -918,24 +918,27 @@ impl<'a> Engine<'a> {
                 let r = g.max_radius();
                 let mut cells = Vec::new();
                 bins.cells_in([g.x - r, g.x + r], [g.y - r, g.y + r], 0, &mut cells);
-                let mut rows: Vec<u32> = cells
+                // The markers inside, keyed by id: the sums run in the order of the ids.
+                let mut inside: Vec<(u64, u32)> = cells
                     .iter()
                     .flat_map(|&c| bins.list(c).iter().copied())
+                    .filter(|&k| {
+                        let k = k as usize;
+                        g.contains([mk.x[k], mk.y[k], mk.z[k]])
+                    })
+                    .map(|k| (mk.id[k as usize], k))
                     .collect();
-                rows.sort_unstable_by_key(|&k| mk.id[k as usize]);
-                for k in rows {
+                inside.sort_unstable();
+                for (_, k) in inside {
                     let k = k as usize;
-                    let p = [mk.x[k], mk.y[k], mk.z[k]];
-                    if g.contains(p) {
-                        let b = mk.block[k] as usize;
-                        let i = ((p[2] - g.z0) / g.h) as usize;
-                        let m = &mut imz.mobilised[i];
-                        m.d += mk.frag[k];
-                        m.phi += bm.friction[b];
-                        m.rho1 += bm.density[b] * (1.0 - bm.n1[b]);
-                        m.rho_s += bm.density[b];
-                        m.count += 1;
-                    }
+                    let b = mk.block[k] as usize;
+                    let i = ((mk.z[k] - g.z0) / g.h) as usize;
+                    let m = &mut imz.mobilised[i];
+                    m.d += mk.frag[k];
+                    m.phi += bm.friction[b];
+                    m.rho1 += bm.density[b] * (1.0 - bm.n1[b]);
+                    m.rho_s += bm.density[b];
+                    m.count += 1;
                 }
             });
     }
