@@ -206,23 +206,29 @@ impl Bins {
     /// result: every sum over markers is taken in the order of their ids or exactly
     /// (`docs::performance`, "What changed").
     fn sort(&mut self, mk: &mut Markers) {
-        let mut key: Vec<(u32, i64, u32)> = (0..mk.len())
+        let mut key: Vec<((usize, i64), u32)> = (0..mk.len())
             .into_par_iter()
-            .map(|k| {
-                let c = self.cell_of(mk.x[k], mk.y[k]) as u32;
-                (c, (mk.z[k] * 16.0).floor() as i64, k as u32)
-            })
+            .map(|k| (self.sort_key(mk, k), k as u32))
             .collect();
         key.par_sort_unstable();
-        let perm: Vec<u32> = key.iter().map(|t| t.2).collect();
+        let perm: Vec<u32> = key.iter().map(|t| t.1).collect();
         mk.permute(&perm);
         self.lists.iter_mut().for_each(Vec::clear);
         self.at.clear();
-        for (row, &(c, _, _)) in key.iter().enumerate() {
+        for (row, &((c, _), _)) in key.iter().enumerate() {
             self.at.push((0, 0));
-            self.put(row, c as usize);
+            self.put(row, c);
         }
         self.unsorted = 0;
+    }
+
+    /// Where row `k` of `mk` goes in [`Bins::sort`]'s order: its cell, then its height in
+    /// bands of 1/16 m.
+    fn sort_key(&self, mk: &Markers, k: usize) -> (usize, i64) {
+        (
+            self.cell_of(mk.x[k], mk.y[k]),
+            (mk.z[k] * 16.0).floor() as i64,
+        )
     }
 
     /// Mirrors [`Markers::take_into`]: row `k` leaves and the last row takes its place.
@@ -275,13 +281,7 @@ mod tests {
 
     /// Whether the rows are in the order of their cells and heights.
     fn sorted(bins: &Bins, mk: &Markers) -> bool {
-        let key = |k: usize| {
-            (
-                bins.cell_of(mk.x[k], mk.y[k]),
-                (mk.z[k] * 16.0).floor() as i64,
-            )
-        };
-        (1..mk.len()).all(|k| key(k - 1) <= key(k))
+        (1..mk.len()).all(|k| bins.sort_key(mk, k - 1) <= bins.sort_key(mk, k))
     }
 
     /// Sorting lists each cell's rows as one run of rows, by height within it, keeps every
