@@ -69,7 +69,7 @@ use crediting::Tally;
 use fragmentation::SizeDist;
 use height_of_draw::tributary;
 use imz::{DiskMotion, Ground, Imz, ImzGeom, ImzGrid, ImzParams, Mobilised};
-use markers::{Bins, DrawnMarkers, Lattice, Markers, MotionField, WallReach};
+use markers::{Bins, DrawnMarkers, Lattice, Markers, MotionField, Rim, WallReach};
 pub use plan::RunPlan;
 pub use result::*;
 
@@ -115,6 +115,9 @@ pub struct Engine<'a> {
     engulfed_mass: Vec<f64>,
     /// One IMZ per drawpoint.
     pub imzs: Vec<Imz>,
+    /// Per IMZ and disk, the lattice sites just beyond the disk's radius (a cache: empty
+    /// after a resume or when ground caves, when the disks walk their whole area again).
+    rims: Vec<Vec<Rim>>,
     /// Moving markers.
     pub markers: Markers,
     /// Drawn markers.
@@ -243,6 +246,7 @@ impl<'a> Engine<'a> {
             engulfed: vec![false; lattice.len()],
             engulfed_mass: vec![0.0; bm.len()],
             imzs,
+            rims: vec![Vec::new(); n_dp],
             markers: Markers::default(),
             drawn: DrawnMarkers::default(),
             carry: vec![0.0; n_dp],
@@ -389,6 +393,7 @@ impl<'a> Engine<'a> {
         if p == 0 || bm.cave_period.iter().any(|&c| c > prev && c <= period) {
             // Newly caved ground: perimeters and engulfment must be looked at again.
             self.imzs.iter_mut().for_each(Imz::ground_changed);
+            self.rims.iter_mut().for_each(Vec::clear);
             self.all_moved = true;
         }
         let row = scene.schedule.period(p);
@@ -816,67 +821,27 @@ impl<'a> Engine<'a> {
         let sized = self.sized();
         let seed = self.scenario.seed;
         let engulfed = &self.engulfed;
-        // Per drawing IMZ: the sites it engulfs, and per disk the nearest site beyond it.
-        type Scan = (Vec<usize>, Vec<(usize, f64)>);
-        let scanned: Vec<Scan> = drawing
-            .par_iter()
-            .map(|&d| {
-                let imz = &self.imzs[d];
+        let mut is_drawing = vec![false; self.imzs.len()];
+        drawing.iter().for_each(|&d| is_drawing[d] = true);
+        // Per drawing IMZ, the sites its disks newly cover ([`Rim`]).
+        let scanned: Vec<Vec<usize>> = (&self.imzs, &mut self.rims)
+            .into_par_iter()
+            .filter(|(m, _)| is_drawing[m.id])
+            .map(|(imz, rims)| {
                 let g = &imz.geom;
+                rims.resize_with(g.radius.len(), Default::default);
                 let mut found = Vec::new();
-                let mut next = Vec::new();
-                for (i, (&r, &r0)) in g.radius.iter().zip(&imz.r_engulfed).enumerate() {
-                    // Nothing new unless the disk grew past the nearest site beyond it.
-                    if r <= r0 || r * r < imz.next_site[i] {
-                        continue;
-                    }
-                    let zb = g.z0 + i as f64 * g.h;
-                    let layers = lat.layers_at_level(zb, zb + g.h, |z| g.level(z), i);
-                    next.push((i, lat.next_site_a2(g.x, g.y, layers, r)));
-                    let (Some(kr), Some(jr)) = (layers, lat.range(1, g.y - r, g.y + r)) else {
-                        continue;
+                for (i, (&r, rim)) in g.radius.iter().zip(rims).enumerate() {
+                    let layers = || {
+                        let zb = g.z0 + i as f64 * g.h;
+                        lat.layers_at_level(zb, zb + g.h, |z| g.level(z), i)
                     };
-                    for k in kr.0..=kr.1 {
-                        for j in jr.0..=jr.1 {
-                            // Only the annulus r0 < a ≤ r of this lattice row is new.
-                            let dy = lat.centre(1, j) - g.y;
-                            let outer = (r * r - dy * dy).max(0.0).sqrt();
-                            let inner = (r0 * r0 - dy * dy).max(0.0).sqrt();
-                            let spans = if inner > 0.0 {
-                                [(g.x - outer, g.x - inner), (g.x + inner, g.x + outer)]
-                            } else {
-                                [(g.x - outer, g.x + outer), (0.0, 0.0)]
-                            };
-                            for (lo, hi) in spans {
-                                // Sites on the outer circle belong in (hence the nudge).
-                                let Some(ir) = lat.range(0, lo, hi + 1e-9 * lat.s) else {
-                                    continue;
-                                };
-                                for ii in ir.0..=ir.1 {
-                                    let id = lat.id(ii, j, k);
-                                    if engulfed[id] {
-                                        continue;
-                                    }
-                                    let p = lat.pos(id);
-                                    let a2 = (p[0] - g.x).powi(2) + (p[1] - g.y).powi(2);
-                                    if a2 <= r * r && a2 > r0 * r0 {
-                                        found.push(id);
-                                    }
-                                }
-                            }
-                        }
-                    }
+                    rim.take(&lat, (g.x, g.y), r, layers, engulfed, &mut found);
                 }
-                (found, next)
+                found
             })
             .collect();
-        let mut sites = Vec::new();
-        for (&d, (found, next)) in drawing.iter().zip(scanned) {
-            let imz = &mut self.imzs[d];
-            imz.r_engulfed.clone_from(&imz.geom.radius);
-            next.into_iter().for_each(|(i, a2)| imz.next_site[i] = a2);
-            sites.extend(found);
-        }
+        let mut sites = scanned.concat();
         sites.sort_unstable();
         sites.dedup();
         for id in sites {

@@ -242,12 +242,6 @@ pub struct Imz {
     pub stagnant: Vec<Stagnant>,
     /// Per-disk mobilised sums (refreshed each period, plus newly engulfed markers).
     pub mobilised: Vec<Mobilised>,
-    /// Radius up to which lattice sites have been engulfed, per disk.
-    pub r_engulfed: Vec<f64>,
-    /// Per disk, the squared distance from the axis of the nearest lattice site beyond
-    /// `r_engulfed` (`Lattice::next_site_a2`; 0: not known yet): until R² reaches it the
-    /// disk covers no new site.
-    pub next_site: Vec<f64>,
     /// Per disk, the reach of flowable ground at its level (`Ground::reach`), the most a
     /// disk can widen; NaN until computed, reset when ground caves.
     pub reach: Vec<f64>,
@@ -331,8 +325,6 @@ impl Imz {
                 ..Default::default()
             }],
             mobilised: vec![Mobilised::default()],
-            r_engulfed: vec![0.0],
-            next_site: vec![0.0],
             reach: vec![f64::NAN],
             air: 0.0,
             vented: 0.0,
@@ -367,10 +359,8 @@ impl Imz {
         }
     }
 
-    /// Newly caved ground: perimeters, reaches and engulfment must be looked at again.
+    /// Newly caved ground: perimeters and reaches must be looked at again.
     pub fn ground_changed(&mut self) {
-        self.r_engulfed.iter_mut().for_each(|r| *r = 0.0);
-        self.next_site.iter_mut().for_each(|a2| *a2 = 0.0);
         self.reach.iter_mut().for_each(|r| *r = f64::NAN);
         self.stagnant
             .iter_mut()
@@ -459,8 +449,6 @@ impl Imz {
                     ..Default::default()
                 });
                 self.mobilised.push(Mobilised::default());
-                self.r_engulfed.push(0.0);
-                self.next_site.push(0.0);
                 self.reach.push(f64::NAN);
             }
             let r_below = if i == 0 {

@@ -165,43 +165,47 @@ impl Lattice {
         Some((k0, k1))
     }
 
-    /// The smallest squared plan distance a² > r² from the axis (x, y) of a site in the
-    /// layers `layers` (inclusive; ∞ if none): while a disk there stays within
-    /// this, it covers no new site, so engulfing can skip it. a² is computed as engulfing
-    /// computes it. Per row, the nearest sites outside the chord are those just beyond the
-    /// chord's ends (or nearest the axis when the row misses the circle); beyond the rows
-    /// the circle spans, the nearest row on each side dominates every farther one.
-    pub fn next_site_a2(&self, x: f64, y: f64, layers: Option<(usize, usize)>, r: f64) -> f64 {
-        let Some(kr) = layers else {
-            return f64::INFINITY;
+    /// Calls `f(a², id)` for every site of the layers `kr` (inclusive) whose squared plan
+    /// distance a² from the axis (x, y) lies in (r_in², r_out²] ([0, r_out²] when r_in < 0).
+    /// Rows are walked over the annulus only; the chords are widened by a nudge so that the
+    /// test on a², the one that decides, sees every site near either circle.
+    pub fn annulus(
+        &self,
+        (x, y): (f64, f64),
+        kr: (usize, usize),
+        (r_in, r_out): (f64, f64),
+        mut f: impl FnMut(f64, usize),
+    ) {
+        let Some(jr) = self.range(1, y - r_out, y + r_out) else {
+            return;
         };
-        let last = |a: usize| self.n[a] as isize - 1;
-        let idx = |a: usize, c: f64| ((c - self.origin[a]) / self.s - 0.5).floor() as isize;
-        let (j0, j1) = ((idx(1, y - r) - 1).max(0), (idx(1, y + r) + 2).min(last(1)));
-        let mut best = f64::INFINITY;
-        // Row j is the same in every layer; only a² matters.
-        let k = kr.0;
-        for j in j0..=j1 {
-            let dy = self.centre(1, j as usize) - y;
-            let outer = (r * r - dy * dy).max(0.0).sqrt();
-            let (lo, hi) = match self.range(0, x - outer, x + outer + 1e-9 * self.s) {
-                Some((a, b)) => (a as isize - 1, b as isize + 1),
-                None => (idx(0, x) - 1, idx(0, x) + 2),
-            };
-            let mut try_site = |i: isize| {
-                if (0..=last(0)).contains(&i) {
-                    let p = self.pos(self.id(i as usize, j as usize, k));
-                    let a2 = (p[0] - x).powi(2) + (p[1] - y).powi(2);
-                    if a2 > r * r && a2 < best {
-                        best = a2;
+        let in2 = if r_in < 0.0 { -1.0 } else { r_in * r_in };
+        let (out2, nudge) = (r_out * r_out, 1e-9 * self.s);
+        for k in kr.0..=kr.1 {
+            for j in jr.0..=jr.1 {
+                let dy = self.centre(1, j) - y;
+                let outer = (out2 - dy * dy).max(0.0).sqrt() + nudge;
+                let inner = (in2 - dy * dy).max(0.0).sqrt() - nudge;
+                let spans = if inner > 0.0 {
+                    [(x - outer, x - inner), (x + inner, x + outer)]
+                } else {
+                    [(x - outer, x + outer), (0.0, 0.0)]
+                };
+                for (lo, hi) in spans {
+                    let Some(ir) = self.range(0, lo, hi) else {
+                        continue;
+                    };
+                    for i in ir.0..=ir.1 {
+                        let id = self.id(i, j, k);
+                        let p = self.pos(id);
+                        let a2 = (p[0] - x).powi(2) + (p[1] - y).powi(2);
+                        if a2 <= out2 && a2 > in2 {
+                            f(a2, id);
+                        }
                     }
                 }
-            };
-            for i in [lo - 1, lo, lo + 1, hi - 1, hi, hi + 1] {
-                try_site(i);
             }
         }
-        best
     }
 
     /// Site index from per-axis indices.
@@ -333,6 +337,88 @@ impl Lattice {
                 len * unit[b] / self.s.powi(3)
             })
             .collect()
+    }
+}
+
+/// How far beyond a disk's radius, in marker spacings, its [`Rim`] lists the sites ahead.
+const RIM_AHEAD: f64 = 0.5;
+
+/// The lattice sites just beyond one IMZ disk's radius, listed so that the disk's growth
+/// takes them in order of distance without walking its annulus again.
+///
+/// A wide disk grows by millimetres an update, and the sites around a radius R lie
+/// millimetres apart in distance (2π R h / s³ of them per metre of radius: 240 at R = 43
+/// m, h = 4 m and s = 1.65 m), so nearly every update brings one inside. Walking the new
+/// annulus for it visited every lattice row the disk spans, and finding where the next
+/// site lay as many again: 11% of the samples of the mine scene at 1.65 m markers. A rim
+/// lists the sites not yet engulfed out to half a spacing beyond the radius at which it
+/// walks, and the disk takes them off the list as its radius passes them.
+/// Engulfing only ever marks sites, so a site listed and marked since is skipped when
+/// taken, and the sites taken at each update are those the annulus walk found there.
+#[derive(Debug, Clone)]
+pub struct Rim {
+    /// Radius out to which the sites are listed, m (−1: none yet, not even on the axis).
+    reach: f64,
+    /// The sites listed and not taken yet, (a², id), farthest first.
+    ahead: Vec<(f64, usize)>,
+}
+
+impl Default for Rim {
+    fn default() -> Rim {
+        Rim {
+            reach: -1.0,
+            ahead: Vec::new(),
+        }
+    }
+}
+
+impl Rim {
+    /// Adds to `found` the sites of the disk's layers (`layers`, asked for only when the
+    /// rim walks) within `r` of its axis (x, y) that it has not taken before and that
+    /// `engulfed` does not mark.
+    pub fn take(
+        &mut self,
+        lat: &Lattice,
+        axis: (f64, f64),
+        r: f64,
+        layers: impl FnOnce() -> Option<(usize, usize)>,
+        engulfed: &[bool],
+        found: &mut Vec<usize>,
+    ) {
+        let r2 = r * r;
+        if r <= self.reach {
+            while let Some(&(a2, id)) = self.ahead.last() {
+                if a2 > r2 {
+                    break;
+                }
+                self.ahead.pop();
+                if !engulfed[id] {
+                    found.push(id);
+                }
+            }
+            return;
+        }
+        // Past everything listed: take it all, and walk on to the new reach.
+        found.extend(
+            self.ahead
+                .drain(..)
+                .map(|(_, id)| id)
+                .filter(|&id| !engulfed[id]),
+        );
+        let reach = r + RIM_AHEAD * lat.s;
+        if let Some(kr) = layers() {
+            lat.annulus(axis, kr, (self.reach, reach), |a2, id| {
+                if !engulfed[id] {
+                    if a2 <= r2 {
+                        found.push(id);
+                    } else {
+                        self.ahead.push((a2, id));
+                    }
+                }
+            });
+        }
+        self.ahead.sort_unstable_by(|a, b| b.0.total_cmp(&a.0));
+        self.reach = reach;
     }
 }
 
@@ -526,10 +612,12 @@ mod tests {
         }
     }
 
-    /// `next_site_a2` is the brute-force minimum over every site of the layer, for axes on
-    /// and off the lattice, radii from zero to past the edge, and sites exactly on a circle.
+    /// A rim takes, update by update, exactly the sites of its layers that the disk's
+    /// growth brings inside (brute force over every site), for axes on and off the
+    /// lattice, steps smaller and larger than its reach, a shrinking radius, radii past the
+    /// edge and sites marked engulfed in between.
     #[test]
-    fn next_site_is_the_nearest_site_beyond_the_radius() {
+    fn a_rim_takes_the_sites_its_disk_grows_over() {
         let l = Lattice {
             origin: [-3.0, 2.0, 0.0],
             grid_min: [-3.0, 2.0, 0.0],
@@ -537,20 +625,8 @@ mod tests {
             s: 0.5,
             n: [24, 20, 4],
         };
-        let brute = |x: f64, y: f64, r: f64| {
-            let mut best = f64::INFINITY;
-            for j in 0..l.n[1] {
-                for i in 0..l.n[0] {
-                    let p = l.pos(l.id(i, j, 1));
-                    let a2 = (p[0] - x).powi(2) + (p[1] - y).powi(2);
-                    if a2 > r * r && a2 < best {
-                        best = a2;
-                    }
-                }
-            }
-            best
-        };
-        let mut checked = 0;
+        let layers = l.range(2, 0.5, 1.5);
+        let mut taken_total = 0;
         for &(x, y) in &[
             (3.0, 7.0),
             (2.75, 6.75),
@@ -558,29 +634,43 @@ mod tests {
             (8.9, 11.9),
             (3.1, 4.37),
         ] {
-            for k in 0..60 {
-                let r = 0.137 * k as f64;
-                let got = l.next_site_a2(x, y, l.range(2, 0.5, 1.0), r);
-                assert_eq!(
-                    got.to_bits(),
-                    brute(x, y, r).to_bits(),
-                    "axis ({x}, {y}), r {r}"
-                );
-                checked += 1;
+            let mut rim = Rim::default();
+            let mut engulfed = vec![false; l.len()];
+            let mut taken = vec![false; l.len()];
+            let mut r_max = 0.0f64;
+            for k in 0..80 {
+                // Growing in steps from 0.013 m to 2 m, shrinking every seventh update.
+                let step = 0.013 * (k * k) as f64 % 2.0;
+                let r = if k % 7 == 3 {
+                    0.9 * r_max
+                } else {
+                    r_max + step
+                };
+                let mut found = Vec::new();
+                rim.take(&l, (x, y), r, || layers, &engulfed, &mut found);
+                found.sort_unstable();
+                let mut want = Vec::new();
+                for id in 0..l.len() {
+                    let p = l.pos(id);
+                    let a2 = (p[0] - x).powi(2) + (p[1] - y).powi(2);
+                    let layer = id / (l.n[0] * l.n[1]);
+                    let in_layers = layers.is_some_and(|(k0, k1)| (k0..=k1).contains(&layer));
+                    if in_layers && a2 <= r * r && !taken[id] && !engulfed[id] {
+                        want.push(id);
+                    }
+                }
+                assert_eq!(found, want, "axis ({x}, {y}), update {k}, r {r}");
+                for &id in &found {
+                    taken[id] = true;
+                }
+                taken_total += found.len();
+                r_max = r_max.max(r);
+                // Another disk engulfs a few sites ahead of this one.
+                for id in (k * 37..l.len()).step_by(211) {
+                    engulfed[id] = true;
+                }
             }
-            // Exactly on a circle of sites: the next one is strictly beyond.
-            let on = l.pos(l.id(5, 5, 1));
-            let r = ((on[0] - x).powi(2) + (on[1] - y).powi(2)).sqrt();
-            assert_eq!(
-                l.next_site_a2(x, y, l.range(2, 0.5, 1.0), r),
-                brute(x, y, r)
-            );
         }
-        assert_eq!(checked, 300);
-        // No layer in the height range: nothing to reach.
-        assert_eq!(
-            l.next_site_a2(3.0, 7.0, l.range(2, 10.0, 11.0), 1.0),
-            f64::INFINITY
-        );
+        assert!(taken_total > 500, "{taken_total}");
     }
 }

@@ -95,7 +95,7 @@ use rayon::prelude::*;
 use super::cadence::Cadence;
 
 pub use bins::Bins;
-pub use lattice::Lattice;
+pub use lattice::{Lattice, Rim};
 pub use motion::{lateral, prepare, radial, MotionField, Step, WallReach};
 
 /// Mobilised markers, struct of arrays. `id` is the stable identity (the lattice site);
