@@ -386,25 +386,19 @@ impl Rim {
         found: &mut Vec<usize>,
     ) {
         let r2 = r * r;
-        if r <= self.reach {
-            while let Some(&(a2, id)) = self.ahead.last() {
-                if a2 > r2 {
-                    break;
-                }
-                self.ahead.pop();
-                if !engulfed[id] {
-                    found.push(id);
-                }
+        while let Some(&(a2, id)) = self.ahead.last() {
+            if a2 > r2 {
+                break;
             }
+            self.ahead.pop();
+            if !engulfed[id] {
+                found.push(id);
+            }
+        }
+        if r <= self.reach {
             return;
         }
-        // Past everything listed: take it all, and walk on to the new reach.
-        found.extend(
-            self.ahead
-                .drain(..)
-                .map(|(_, id)| id)
-                .filter(|&id| !engulfed[id]),
-        );
+        // Past everything listed (all taken above): walk on to the new reach.
         let reach = r + RIM_AHEAD * lat.s;
         if let Some(kr) = layers() {
             lat.annulus(axis, kr, (self.reach, reach), |a2, id| {
