@@ -44,6 +44,10 @@
 //!    (on the tests' three-zone truth, picking the best run put Urad at 0.720 ± 0.012
 //!    against a truth of 0.75; the linearised minimum gives 0.751). J's off-diagonal terms
 //!    are how the zones' influence on one another enters.
+//!
+//!    Steps 1 and 2 are made whole on each of K marker lattices
+//!    ([`CalibrateConfig::lattices`], 4 by default: the scenario's and its first three
+//!    twins, below), and each zone's factor is the mean of the K fits ("Lattice").
 //! 3. **globals** (when asked): n1 then φ factors, each on a grid around 1 with the zones
 //!    fixed, judged on all rows; θ̂ from the profile's parabola (below).
 //! 4. a run at the fitted values gives the error after, the same run on three other marker
@@ -68,15 +72,23 @@
 //! **Lattice.** The markers sample the ground at their lattice's sites, and a fit made with
 //! one lattice leans on that sample's noise in the same way in every trial run (the same
 //! markers fall the same way), so it is biased by it, beyond what the residuals' scatter
-//! shows. The runs at θ̂ on three twin lattices (below) measure it: the step
-//! −A⁻¹ Jᵀ (e_twin − e_fit) is how far the factors would move had the fit been made on a
-//! twin lattice, the difference of two equally noisy fits, so √2 times one fit's part.
-//! The RMS of the three steps over √2 is each factor's `se_lattice`, added in quadrature
-//! too. Without it, fits of three zones at once from a finer run's records at four lattice
-//! offsets missed the truth by up to 9 of the SEs reported (`docs::validation`). With one
-//! twin only, the step is one draw of a difference, often far below the spread it stands
-//! for: on the test with records from a finer run it gave contact 0.001 and the fit
-//! missed by 2.8 SE; three twins gave 0.029.
+//! shows. The zones are therefore fitted whole on K lattices, each another sample of the
+//! same ground, and each factor is the K fits' mean; its `se_lattice` is the standard
+//! error of that mean (the fits' sample standard deviation over √K), added in quadrature.
+//! It has K − 1 degrees of freedom, so with the default 4 it is itself uncertain by about
+//! 40%. On the three-zone truth of the tests (twice the default h and spacing, records from
+//! a run at half the fit's spacing), one set of records fitted on four lattices gave
+//! contact 0.81–1.21 (standard deviation 0.19) and Primos 1.03–1.28 (0.11). Each single fit
+//! said its lattice part was 0.02–0.06: the estimate with K = 1, below, reads the other
+//! lattices through the fit's own Jacobian, and on a surface ragged at the scale of single
+//! markers that Jacobian does not say where another lattice's fit lands. With one lattice,
+//! such fits missed the truth by up to 8 of their SEs (`docs::validation`,
+//! "Back-analysis").
+//!
+//! With K = 1 (a quarter of the runs), the runs at θ̂ on the three twin lattices (below)
+//! give the estimate: the step −A⁻¹ Jᵀ (e_twin − e_fit) is how far the factors would move
+//! had the fit been made on a twin lattice, the difference of two equally noisy fits, so
+//! √2 times one fit's part; `se_lattice` is the RMS of the three steps over √2.
 //!
 //! **Noise.** The model's own noise is the markers' sampling noise (`docs::performance`,
 //! "Sampling noise"). The run at θ̂ is made once more on each twin lattice, moved in plan by
@@ -165,6 +177,11 @@ pub struct CalibrateConfig {
     pub coarse: Vec<f64>,
     /// Grid of n1 and φ factors.
     pub global: Vec<f64>,
+    /// Marker lattices the zones are fitted on, each fit made whole on its own lattice;
+    /// the zone factors are the fits' mean (module docs, "Lattice"). 1 fits on the
+    /// scenario's lattice alone, at a quarter of the runs, and says less of what the
+    /// markers' sampling does to the fit.
+    pub lattices: usize,
 }
 
 impl Default for CalibrateConfig {
@@ -175,6 +192,7 @@ impl Default for CalibrateConfig {
             fit_friction: false,
             coarse: vec![0.4, 0.6, 0.8, 1.0, 1.25, 1.5],
             global: vec![0.9, 0.95, 1.0, 1.05, 1.1],
+            lattices: LATTICES,
         }
     }
 }
@@ -194,10 +212,15 @@ pub struct Fitted {
     /// been fitted at 2^(−1/2) times the marker spacing (zone factors; NaN for the global
     /// ones). Part of `se` in quadrature.
     pub se_resolution: f64,
-    /// The part of `se` that the markers' sampling gives: how far the factor moves between
-    /// fits on two equally good marker lattices, over √2 (zone factors; NaN for the global
-    /// ones). `se` is the statistical SE, this and `se_resolution` in quadrature.
+    /// The part of `se` that the markers' sampling gives: the standard error of the mean of
+    /// the fits on [`CalibrateConfig::lattices`] lattices (on one, how far the factor
+    /// would move had it been fitted on another, over √2; module docs, "Lattice"). Zone
+    /// factors; NaN for the global ones. `se` is the statistical SE, this and
+    /// `se_resolution` in quadrature.
     pub se_lattice: f64,
+    /// The fit on each marker lattice, the scenario's first (zone factors with more than
+    /// one lattice; empty otherwise): `value` is their mean.
+    pub lattice_values: Vec<f64>,
     /// 95% interval: θ̂ ± 1.96 SE and the profile interval, whichever reaches further.
     pub ci95: [f64; 2],
     /// Rows the parameter is judged on.
@@ -421,27 +444,30 @@ impl Problem<'_> {
             .collect()
     }
 
-    fn eval_all(&self, cals: &[Calibration]) -> Result<Vec<Eval>, CalibrateError> {
+    /// Runs each of `cals` on marker lattice `lattice` ([`Trial::lattice`]), as one batch.
+    fn eval_all(&self, cals: &[Calibration], lattice: usize) -> Result<Vec<Eval>, CalibrateError> {
         let trials: Vec<Trial> = cals
             .iter()
             .map(|c| Trial {
                 calibration: c.clone(),
                 finer: 1.0,
-                lattice: 0,
+                lattice,
             })
             .collect();
         self.eval_trials(&trials)
     }
 
-    /// [`Problem::eval_all`] of `start` with the zones' factors at each of `ts`.
+    /// [`Problem::eval_all`] of the scenario's calibration with the zones' factors at each
+    /// of `ts`.
     fn eval_zones(
         &self,
-        start: &Calibration,
         zones: &[String],
         ts: &[Vec<f64>],
+        lattice: usize,
     ) -> Result<Vec<Eval>, CalibrateError> {
+        let start = &self.scenario.calibration;
         let cals: Vec<Calibration> = ts.iter().map(|t| zones_to(start, zones, t)).collect();
-        self.eval_all(&cals)
+        self.eval_all(&cals, lattice)
     }
 }
 
@@ -567,10 +593,20 @@ pub fn calibrate(
     let first: Vec<Calibration> = std::iter::once(start.clone())
         .chain(coarse.iter().filter(|c| **c != start).cloned())
         .collect();
-    // At most: the joint fit's every iteration, and the final pair of runs.
-    let total = first.len()
-        + usize::from(cfg.zones.len() > 1) * (1 + cfg.zones.len() * cfg.coarse.len())
-        + usize::from(!cfg.zones.is_empty()) * MAX_ITERATIONS * runs_per_iteration(cfg.zones.len())
+    // The lattices the zones are fitted on (steps 1–2 on each; module docs).
+    let lattices = if cfg.zones.is_empty() {
+        1
+    } else {
+        cfg.lattices.max(1)
+    };
+    // At most: on each lattice the first runs, step 1b and the joint fit's every
+    // iteration; then the globals and the final runs.
+    let total = lattices
+        * (first.len()
+            + usize::from(cfg.zones.len() > 1) * (1 + cfg.zones.len() * cfg.coarse.len())
+            + usize::from(!cfg.zones.is_empty())
+                * MAX_ITERATIONS
+                * runs_per_iteration(cfg.zones.len()))
         + usize::from(cfg.fit_n1) * cfg.global.len()
         + usize::from(cfg.fit_friction) * cfg.global.len()
         + 2;
@@ -579,85 +615,50 @@ pub fn calibrate(
         *runs += k;
         progress(*runs, total);
     };
-    let first_evals = p.eval_all(&first)?;
+    let mut first_evals = p.eval_all(&first, 0)?;
     tick(first.len(), &mut runs);
     let before = first_evals[0].clone();
     let mut cal = start.clone();
     let mut profiles: BTreeMap<String, Profile> = BTreeMap::new();
     let mut joint_fit: Option<Joint> = None;
     let start_of = |z: &str| start.frag_factor.get(z).copied().unwrap_or(1.0);
+    // Per zone, its fit on each lattice (with more than one).
+    let mut lattice_values: Vec<Vec<f64>> = Vec::new();
 
     if !cfg.zones.is_empty() {
-        let evals: Vec<&Eval> = coarse
-            .iter()
-            .map(|c| &first_evals[first.iter().position(|f| f == c).expect("in the batch")])
-            .collect();
-        for z in &cfg.zones {
-            let prof = profiles.entry(format!("frag_factor.{z}")).or_default();
-            prof.push((start_of(z), before.of(zone_rows[z].as_deref())));
-            for (f, e) in cfg.coarse.iter().zip(&evals) {
-                prof.push((*f, e.of(zone_rows[z].as_deref())));
-            }
-        }
-        let best = |z: &str| argmin(&profiles[&format!("frag_factor.{z}")]);
-        let mut theta: Vec<f64> = cfg.zones.iter().map(|z| best(z)).collect();
-        let bounds = cfg
-            .coarse
-            .iter()
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &f| {
-                (l.min(f), h.max(f))
-            });
-        let mut seen: Vec<(Vec<f64>, Eval)> = first
-            .iter()
-            .zip(&first_evals)
-            .map(|(c, e)| {
-                let t = cfg
-                    .zones
-                    .iter()
-                    .map(|z| c.frag_factor.get(z).copied().unwrap_or(1.0));
-                (t.collect(), e.clone())
-            })
-            .collect();
-        // Where a zone's factor was varied alone: its profile (below) is the runs on those
-        // axes.
-        let mut centres: Vec<Vec<f64>> = Vec::new();
-        // 1b. Several zones: each zone over the grid with the others at their coarse best,
-        // each taking its best on all rows (module docs).
-        if cfg.zones.len() > 1 {
-            centres.push(theta.clone());
-            theta = one_at_a_time(
-                p,
-                &start,
-                &cfg.zones,
-                &cfg.coarse,
-                &theta,
-                &mut seen,
-                &mut |k| tick(k, &mut runs),
-            )?;
-        }
-        // 2. The zones jointly, from there.
-        let fit = joint(p, &start, &cfg.zones, bounds, theta, seen, &mut |k| {
-            tick(k, &mut runs)
-        })?;
-        centres.extend(fit.centres.iter().cloned());
-        for (k, z) in cfg.zones.iter().enumerate() {
-            let prof = profiles
-                .get_mut(&format!("frag_factor.{z}"))
-                .expect("coarse made it");
-            let on_axis = |t: &[f64]| {
-                centres
-                    .iter()
-                    .any(|c| (0..t.len()).all(|j| j == k || t[j] == c[j]))
+        let step1 = First {
+            cals: &first,
+            coarse: &coarse,
+            zone_rows: &zone_rows,
+        };
+        // Steps 1–2 on each lattice, the scenario's first: its profiles are reported.
+        let mut fits = Vec::new();
+        for lattice in 0..lattices {
+            let evals = if lattice == 0 {
+                std::mem::take(&mut first_evals)
+            } else {
+                let e = p.eval_all(&first, lattice)?;
+                tick(first.len(), &mut runs);
+                e
             };
-            prof.extend(
-                fit.points
-                    .iter()
-                    .filter(|(t, _)| on_axis(t))
-                    .map(|(t, e)| (t[k], e.of(zone_rows[z].as_deref()))),
-            );
-            cal.frag_factor.insert(z.clone(), fit.theta[k]);
+            let (fit, prof) =
+                fit_zones(p, cfg, &step1, evals, lattice, &mut |k| tick(k, &mut runs))?;
+            if lattice == 0 {
+                profiles = prof;
+            }
+            fits.push(fit);
         }
-        joint_fit = Some(fit);
+        let n = fits.len() as f64;
+        for (k, z) in cfg.zones.iter().enumerate() {
+            let mean = fits.iter().map(|f| f.theta[k]).sum::<f64>() / n;
+            cal.frag_factor.insert(z.clone(), mean);
+        }
+        if fits.len() > 1 {
+            lattice_values = (0..cfg.zones.len())
+                .map(|k| fits.iter().map(|f| f.theta[k]).collect())
+                .collect();
+        }
+        joint_fit = fits.into_iter().next();
     }
 
     // 3. Globals, zones fixed.
@@ -681,7 +682,7 @@ pub fn calibrate(
                 c
             })
             .collect();
-        let evals = p.eval_all(&cands)?;
+        let evals = p.eval_all(&cands, 0)?;
         tick(cands.len(), &mut runs);
         let prof: Profile = cfg
             .global
@@ -732,19 +733,28 @@ pub fn calibrate(
         .max(0.0)
         .sqrt();
     let shift = joint_fit.as_ref().and_then(|f| f.shift(after, finer));
-    // Per zone, the RMS over the twins of the shift to each, over √2.
-    let lattice = joint_fit.as_ref().and_then(|f| {
-        let shifts: Vec<DVector<f64>> = twins.iter().filter_map(|t| f.shift(after, t)).collect();
-        (!shifts.is_empty()).then(|| {
-            let n = shifts.len() as f64;
-            shifts
-                .iter()
-                .fold(DVector::zeros(shifts[0].len()), |acc, d| {
-                    acc + d.component_mul(d)
-                })
-                .map(|ms| (ms / (2.0 * n)).sqrt())
+    // Per zone: over several lattices, the standard error of the fits' mean; on one, the
+    // RMS over the twins of the shift to each, over √2.
+    let lattice = if !lattice_values.is_empty() {
+        Some(DVector::from_iterator(
+            lattice_values.len(),
+            lattice_values.iter().map(|v| standard_error(v)),
+        ))
+    } else {
+        joint_fit.as_ref().and_then(|f| {
+            let shifts: Vec<DVector<f64>> =
+                twins.iter().filter_map(|t| f.shift(after, t)).collect();
+            (!shifts.is_empty()).then(|| {
+                let n = shifts.len() as f64;
+                shifts
+                    .iter()
+                    .fold(DVector::zeros(shifts[0].len()), |acc, d| {
+                        acc + d.component_mul(d)
+                    })
+                    .map(|ms| (ms / (2.0 * n)).sqrt())
+            })
         })
-    });
+    };
     let cov = joint_fit.as_ref().and_then(|f| f.covariance(after));
 
     let mut parameters = Vec::new();
@@ -754,13 +764,12 @@ pub fn calibrate(
         let zone = name.strip_prefix("frag_factor.");
         let (start_value, value, se, se_resolution, se_lattice, ci95) = match zone {
             Some(z) => {
-                let fit = joint_fit.as_ref().expect("zones are fitted jointly");
                 let k = cfg
                     .zones
                     .iter()
                     .position(|q| q == z)
                     .expect("a fitted zone");
-                let value = fit.theta[k];
+                let value = cal.frag_factor[z];
                 let res = shift.as_ref().map_or(f64::NAN, |d| d[k].abs());
                 let lat = lattice.as_ref().map_or(f64::NAN, |d| d[k]);
                 let stat = cov.as_ref().map_or(f64::NAN, |c| c[(k, k)].sqrt());
@@ -794,6 +803,10 @@ pub fn calibrate(
             se,
             se_resolution,
             se_lattice,
+            lattice_values: zone
+                .and_then(|z| cfg.zones.iter().position(|q| q == z))
+                .and_then(|k| lattice_values.get(k).cloned())
+                .unwrap_or_default(),
             ci95,
             n: prof.first().map_or(0, |q| q.1 .1),
             profile: prof.iter().map(|&(t, e)| [t, rmse(e)]).collect(),
@@ -816,6 +829,100 @@ pub fn calibrate(
         lowered: rmse(after.all) < rmse(before.all),
         calibration: cal,
     })
+}
+
+/// The runs of step 1 (the start and the coarse grid) and the rows each zone is judged on.
+struct First<'a> {
+    /// The start, then the coarse grid's values but the start.
+    cals: &'a [Calibration],
+    /// The coarse grid, every zone at one value.
+    coarse: &'a [Calibration],
+    /// Each zone's rows: those of the drawpoints whose zone it is (None: all rows).
+    zone_rows: &'a BTreeMap<String, Option<String>>,
+}
+
+/// Steps 1–2 (module docs) on marker lattice `lattice`, from the runs of `first` made on
+/// it (`evals`): the joint fit, and each zone's profile (its rows' errors at the coarse
+/// grid and wherever its factor alone differed from a centre).
+fn fit_zones(
+    p: &Problem,
+    cfg: &CalibrateConfig,
+    first: &First,
+    evals: Vec<Eval>,
+    lattice: usize,
+    tick: &mut dyn FnMut(usize),
+) -> Result<(Joint, BTreeMap<String, Profile>), CalibrateError> {
+    let start = &p.scenario.calibration;
+    let start_of = |z: &str| start.frag_factor.get(z).copied().unwrap_or(1.0);
+    let rows_of = |z: &str| first.zone_rows[z].as_deref();
+    let mut profiles: BTreeMap<String, Profile> = BTreeMap::new();
+    let coarse: Vec<&Eval> = first
+        .coarse
+        .iter()
+        .map(|c| {
+            &evals[first
+                .cals
+                .iter()
+                .position(|f| f == c)
+                .expect("in the batch")]
+        })
+        .collect();
+    for z in &cfg.zones {
+        let prof = profiles.entry(format!("frag_factor.{z}")).or_default();
+        prof.push((start_of(z), evals[0].of(rows_of(z))));
+        for (f, e) in cfg.coarse.iter().zip(&coarse) {
+            prof.push((*f, e.of(rows_of(z))));
+        }
+    }
+    let best = |z: &str| argmin(&profiles[&format!("frag_factor.{z}")]);
+    let mut theta: Vec<f64> = cfg.zones.iter().map(|z| best(z)).collect();
+    let bounds = cfg
+        .coarse
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &f| {
+            (l.min(f), h.max(f))
+        });
+    let mut seen: Vec<(Vec<f64>, Eval)> = first
+        .cals
+        .iter()
+        .zip(evals)
+        .map(|(c, e)| {
+            let t = cfg
+                .zones
+                .iter()
+                .map(|z| c.frag_factor.get(z).copied().unwrap_or(1.0));
+            (t.collect(), e)
+        })
+        .collect();
+    // Where a zone's factor was varied alone: its profile (below) is the runs on those
+    // axes.
+    let mut centres: Vec<Vec<f64>> = Vec::new();
+    // 1b. Several zones: each zone over the grid with the others at their coarse best,
+    // each taking its best on all rows (module docs).
+    if cfg.zones.len() > 1 {
+        centres.push(theta.clone());
+        theta = one_at_a_time(p, &cfg.zones, &cfg.coarse, &theta, &mut seen, lattice, tick)?;
+    }
+    // 2. The zones jointly, from there.
+    let fit = joint(p, &cfg.zones, bounds, theta, seen, lattice, tick)?;
+    centres.extend(fit.centres.iter().cloned());
+    for (k, z) in cfg.zones.iter().enumerate() {
+        let prof = profiles
+            .get_mut(&format!("frag_factor.{z}"))
+            .expect("coarse made it");
+        let on_axis = |t: &[f64]| {
+            centres
+                .iter()
+                .any(|c| (0..t.len()).all(|j| j == k || t[j] == c[j]))
+        };
+        prof.extend(
+            fit.points
+                .iter()
+                .filter(|(t, _)| on_axis(t))
+                .map(|(t, e)| (t[k], e.of(rows_of(z)))),
+        );
+    }
+    Ok((fit, profiles))
 }
 
 /// A global factor's θ̂, SE and 95% interval from its one-dimensional profile (module docs,
@@ -863,6 +970,18 @@ const CONVERGED: f64 = 0.01;
 /// h and the marker spacing, as multiples of the fit's, of the run that checks the
 /// resolution: 2^(−1/2), 2.8 times the markers (module docs, "Resolution").
 const CHECK_RESOLUTION: f64 = std::f64::consts::FRAC_1_SQRT_2;
+
+/// Marker lattices the zones are fitted on by default ([`CalibrateConfig::lattices`]):
+/// the scenario's and its first three twins, the lattices the fitted values are run on.
+pub const LATTICES: usize = 1 + TWINS;
+
+/// The standard error of the mean of `v`: its sample standard deviation over √n.
+fn standard_error(v: &[f64]) -> f64 {
+    let n = v.len() as f64;
+    let mean = v.iter().sum::<f64>() / n;
+    let ss: f64 = v.iter().map(|x| (x - mean).powi(2)).sum();
+    (ss / (n - 1.0) / n).sqrt()
+}
 
 /// Twin lattices the fitted values are run on, to measure the markers' sampling noise and
 /// the fit's lean on its lattice (module docs, "Lattice" and "Noise"). One pair is one
@@ -949,11 +1068,11 @@ fn zones_to(start: &Calibration, zones: &[String], t: &[f64]) -> Calibration {
 /// rows; returns each zone's best. The runs join `seen`.
 fn one_at_a_time(
     p: &Problem,
-    start: &Calibration,
     zones: &[String],
     grid: &[f64],
     theta: &[f64],
     seen: &mut Vec<(Vec<f64>, Eval)>,
+    lattice: usize,
     tick: &mut dyn FnMut(usize),
 ) -> Result<Vec<f64>, CalibrateError> {
     let cands: Vec<Vec<f64>> = std::iter::once(theta.to_vec())
@@ -966,7 +1085,7 @@ fn one_at_a_time(
         }))
         .filter(|t| !seen.iter().any(|(q, _)| q == t))
         .collect();
-    let evals = p.eval_zones(start, zones, &cands)?;
+    let evals = p.eval_zones(zones, &cands, lattice)?;
     tick(cands.len());
     seen.extend(cands.into_iter().zip(evals));
     Ok((0..zones.len())
@@ -1038,11 +1157,11 @@ fn regression(
 /// within `bounds`; `points` are the runs already made (factors and errors).
 fn joint(
     p: &Problem,
-    start: &Calibration,
     zones: &[String],
     bounds: (f64, f64),
     mut theta: Vec<f64>,
     mut points: Vec<(Vec<f64>, Eval)>,
+    lattice: usize,
     tick: &mut dyn FnMut(usize),
 ) -> Result<Joint, CalibrateError> {
     let mut last = None;
@@ -1060,7 +1179,7 @@ fn joint(
                 })
             }))
             .collect();
-        let evals = p.eval_zones(start, zones, &batch)?;
+        let evals = p.eval_zones(zones, &batch, lattice)?;
         tick(batch.len());
         points.extend(batch.into_iter().zip(evals));
         let Some(lin) = regression(&points, &theta) else {

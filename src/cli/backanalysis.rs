@@ -61,6 +61,12 @@ pub struct CalibrateArgs {
     /// Coarse grid of fragment-size factors.
     #[arg(long, value_delimiter = ',')]
     pub coarse: Option<Vec<f64>>,
+    /// Marker lattices the zones are fitted on, a whole fit on each: the factors are the
+    /// fits' mean and their spread is part of the SE. 1 takes a quarter of the runs and
+    /// sees less of what the markers' sampling does to the fit.
+    #[arg(long, value_name = "K", default_value_t = calibrate::LATTICES as u32,
+          value_parser = clap::value_parser!(u32).range(1..))]
+    pub lattices: u32,
     /// Use only the first N periods (and the records inside them).
     #[arg(long, value_name = "N")]
     pub keep_periods: Option<usize>,
@@ -235,6 +241,7 @@ pub(super) fn calibrate_cmd(a: CalibrateArgs) -> Result<ExitCode> {
         zones,
         fit_n1: a.fit_n1,
         fit_friction: a.fit_friction,
+        lattices: a.lattices as usize,
         ..CalibrateConfig::default()
     };
     if let Some(c) = a.coarse {
@@ -302,7 +309,7 @@ pub(super) fn calibrate_cmd(a: CalibrateArgs) -> Result<ExitCode> {
         ),
     )?;
     for f in &report.parameters {
-        let res = if f.se_resolution.is_finite() {
+        let mut res = if f.se_resolution.is_finite() {
             format!(
                 ", of which resolution {:.3} and marker sampling {:.3}",
                 f.se_resolution, f.se_lattice
@@ -310,6 +317,10 @@ pub(super) fn calibrate_cmd(a: CalibrateArgs) -> Result<ExitCode> {
         } else {
             String::new()
         };
+        if !f.lattice_values.is_empty() {
+            let each: Vec<String> = f.lattice_values.iter().map(|v| format!("{v:.3}")).collect();
+            res += &format!("; on each lattice {}", each.join(", "));
+        }
         println!(
             "{}: {:.3} → {:.3} ± {:.3}{res} (95%: {:.3}–{:.3}); RMSE of its {} rows {:.4}% → {:.4}%",
             f.name, f.start, f.value, f.se, f.ci95[0], f.ci95[1], f.n, f.rmse_before, f.rmse_after
@@ -344,6 +355,12 @@ pub(super) fn calibrate_cmd(a: CalibrateArgs) -> Result<ExitCode> {
             eprintln!(
                 "warning: {} moves by {:.3} between this resolution and a finer one, more than its statistical SE {stat:.3}: its value is limited by the resolution",
                 f.name, f.se_resolution
+            );
+        }
+        if f.se_lattice > stat {
+            eprintln!(
+                "warning: {}'s fits on the marker lattices leave its mean uncertain by {:.3}, more than its statistical SE {stat:.3}: its value is limited by the markers' sampling (a finer resolution narrows it)",
+                f.name, f.se_lattice
             );
         }
     }

@@ -63,6 +63,19 @@ fn invalid_flags_exit_1_with_clap_message() {
             ][..],
             "grade \"Au\" is not sampled in the records",
         ),
+        (
+            &[
+                "calibrate",
+                "data/scenario.toml",
+                "--records",
+                "data/records.csv",
+                "--lattices",
+                "0",
+                "--out",
+                out.to_str().unwrap(),
+            ][..],
+            "invalid value '0' for '--lattices <K>'",
+        ),
     ] {
         let got = caveflow()
             .current_dir(env!("CARGO_MANIFEST_DIR"))
