@@ -621,7 +621,6 @@ pub fn calibrate(
     let mut cal = start.clone();
     let mut profiles: BTreeMap<String, Profile> = BTreeMap::new();
     let mut joint_fit: Option<Joint> = None;
-    let start_of = |z: &str| start.frag_factor.get(z).copied().unwrap_or(1.0);
     // Per zone, its fit on each lattice (with more than one).
     let mut lattice_values: Vec<Vec<f64>> = Vec::new();
 
@@ -776,7 +775,7 @@ pub fn calibrate(
                 let finite = |x: f64| if x.is_finite() { x } else { 0.0 };
                 let se = stat.hypot(finite(res)).hypot(finite(lat));
                 (
-                    start_of(z),
+                    frag_factor(&start, z),
                     value,
                     se,
                     res,
@@ -853,7 +852,6 @@ fn fit_zones(
     tick: &mut dyn FnMut(usize),
 ) -> Result<(Joint, BTreeMap<String, Profile>), CalibrateError> {
     let start = &p.scenario.calibration;
-    let start_of = |z: &str| start.frag_factor.get(z).copied().unwrap_or(1.0);
     let rows_of = |z: &str| first.zone_rows[z].as_deref();
     let mut profiles: BTreeMap<String, Profile> = BTreeMap::new();
     let coarse: Vec<&Eval> = first
@@ -869,7 +867,7 @@ fn fit_zones(
         .collect();
     for z in &cfg.zones {
         let prof = profiles.entry(format!("frag_factor.{z}")).or_default();
-        prof.push((start_of(z), evals[0].of(rows_of(z))));
+        prof.push((frag_factor(start, z), evals[0].of(rows_of(z))));
         for (f, e) in cfg.coarse.iter().zip(&coarse) {
             prof.push((*f, e.of(rows_of(z))));
         }
@@ -887,10 +885,7 @@ fn fit_zones(
         .iter()
         .zip(evals)
         .map(|(c, e)| {
-            let t = cfg
-                .zones
-                .iter()
-                .map(|z| c.frag_factor.get(z).copied().unwrap_or(1.0));
+            let t = cfg.zones.iter().map(|z| frag_factor(c, z));
             (t.collect(), e)
         })
         .collect();
@@ -1053,6 +1048,11 @@ fn correlation(c: &DMatrix<f64>) -> Vec<Vec<f64>> {
                 .collect()
         })
         .collect()
+}
+
+/// Zone `z`'s fragment factor in `c` (1 where `c` names none).
+fn frag_factor(c: &Calibration, z: &str) -> f64 {
+    c.frag_factor.get(z).copied().unwrap_or(1.0)
 }
 
 /// `start` with zone k's fragment factor at `t[k]`.
