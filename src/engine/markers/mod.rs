@@ -98,6 +98,14 @@ pub use bins::Bins;
 pub use lattice::{Lattice, Rim};
 pub use motion::{lateral, prepare, radial, MotionField, Step, WallReach};
 
+/// Calls the macro `$m` with the names of every column of [`Markers`], so that what is done
+/// to each column (reorder, append, move a row) is written once and cannot miss one.
+macro_rules! columns {
+    ($m:ident) => {
+        $m!(id, x, y, z, mass, block, frag, strain, work, rill, frag0, attrited, percolated, level)
+    };
+}
+
 /// Mobilised markers, struct of arrays. `id` is the stable identity (the lattice site);
 /// row order changes no result (every sum over markers is taken in the order of their ids,
 /// or exactly), so [`Bins::tidy`] may reorder the rows for the cache.
@@ -162,23 +170,10 @@ impl Markers {
     /// Whether every column has one value per marker (a decoded checkpoint may not).
     pub fn is_consistent(&self) -> bool {
         let n = self.id.len();
-        [
-            self.x.len(),
-            self.y.len(),
-            self.z.len(),
-            self.mass.len(),
-            self.block.len(),
-            self.frag.len(),
-            self.strain.len(),
-            self.work.len(),
-            self.rill.len(),
-            self.frag0.len(),
-            self.attrited.len(),
-            self.percolated.len(),
-            self.level.len(),
-        ]
-        .iter()
-        .all(|&l| l == n)
+        macro_rules! same_length {
+            ($($c:ident),*) => { true $(&& self.$c.len() == n)* };
+        }
+        columns!(same_length)
     }
 
     /// Reorders the rows: row k takes the old row `perm[k]` (`perm` a permutation of the
@@ -192,38 +187,18 @@ impl Markers {
             };
             *v = new;
         }
-        gather(&mut self.id, perm);
-        gather(&mut self.x, perm);
-        gather(&mut self.y, perm);
-        gather(&mut self.z, perm);
-        gather(&mut self.mass, perm);
-        gather(&mut self.block, perm);
-        gather(&mut self.frag, perm);
-        gather(&mut self.strain, perm);
-        gather(&mut self.work, perm);
-        gather(&mut self.rill, perm);
-        gather(&mut self.frag0, perm);
-        gather(&mut self.attrited, perm);
-        gather(&mut self.percolated, perm);
-        gather(&mut self.level, perm);
+        macro_rules! gather_all {
+            ($($c:ident),*) => { $(gather(&mut self.$c, perm);)* };
+        }
+        columns!(gather_all);
     }
 
     /// Moves every row of `other` to the end of these.
     pub fn append(&mut self, other: &mut Markers) {
-        self.id.append(&mut other.id);
-        self.x.append(&mut other.x);
-        self.y.append(&mut other.y);
-        self.z.append(&mut other.z);
-        self.mass.append(&mut other.mass);
-        self.block.append(&mut other.block);
-        self.frag.append(&mut other.frag);
-        self.strain.append(&mut other.strain);
-        self.work.append(&mut other.work);
-        self.rill.append(&mut other.rill);
-        self.frag0.append(&mut other.frag0);
-        self.attrited.append(&mut other.attrited);
-        self.percolated.append(&mut other.percolated);
-        self.level.append(&mut other.level);
+        macro_rules! append_all {
+            ($($c:ident),*) => { $(self.$c.append(&mut other.$c);)* };
+        }
+        columns!(append_all);
     }
 
     /// Appends a marker.
@@ -247,20 +222,10 @@ impl Markers {
 
     /// Moves row `k` out (swap-remove) and appends it to `to`.
     pub fn take_into(&mut self, k: usize, to: &mut Markers) {
-        to.id.push(self.id.swap_remove(k));
-        to.x.push(self.x.swap_remove(k));
-        to.y.push(self.y.swap_remove(k));
-        to.z.push(self.z.swap_remove(k));
-        to.mass.push(self.mass.swap_remove(k));
-        to.block.push(self.block.swap_remove(k));
-        to.frag.push(self.frag.swap_remove(k));
-        to.strain.push(self.strain.swap_remove(k));
-        to.work.push(self.work.swap_remove(k));
-        to.rill.push(self.rill.swap_remove(k));
-        to.frag0.push(self.frag0.swap_remove(k));
-        to.attrited.push(self.attrited.swap_remove(k));
-        to.percolated.push(self.percolated.swap_remove(k));
-        to.level.push(self.level.swap_remove(k));
+        macro_rules! take_all {
+            ($($c:ident),*) => { $(to.$c.push(self.$c.swap_remove(k));)* };
+        }
+        columns!(take_all);
     }
 }
 
@@ -433,4 +398,48 @@ fn windows<'a, T>(mut col: &'a mut [T], spans: &[(usize, usize)]) -> Vec<&'a mut
         at = hi;
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `columns!` names every field of `Markers`, so the row operations written with it
+    /// keep every column the same length: two markers, reordered, appended to each other
+    /// and one row moved out.
+    #[test]
+    fn the_column_list_holds_every_column() {
+        macro_rules! names {
+            ($($c:ident),*) => { vec![$(stringify!($c)),*] };
+        }
+        let listed: Vec<&str> = columns!(names);
+        let json = serde_json::to_value(Markers::default()).unwrap();
+        let mut fields: Vec<&str> = json
+            .as_object()
+            .unwrap()
+            .keys()
+            .map(String::as_str)
+            .collect();
+        let mut sorted = listed.clone();
+        fields.sort_unstable();
+        sorted.sort_unstable();
+        assert_eq!(fields, sorted);
+
+        let mut a = Markers::default();
+        a.push(7, [1.0, 2.0, 3.0], 10.0, 4, 0.5);
+        a.push(9, [4.0, 5.0, 6.0], 20.0, 5, 0.7);
+        a.permute(&[1, 0]);
+        assert_eq!((a.id.clone(), a.z.clone()), (vec![9, 7], vec![6.0, 3.0]));
+        let mut b = a.clone();
+        a.append(&mut b);
+        assert!(a.is_consistent() && a.len() == 4 && b.is_empty() && b.is_consistent());
+        a.take_into(0, &mut b);
+        assert!(a.is_consistent() && b.is_consistent());
+        assert_eq!(
+            (a.id.clone(), b.id.clone(), b.mass.clone()),
+            (vec![7, 7, 9], vec![9], vec![20.0])
+        );
+        a.level.pop();
+        assert!(!a.is_consistent());
+    }
 }
