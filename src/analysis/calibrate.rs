@@ -47,7 +47,10 @@
 //!
 //!    Steps 1 and 2 are made whole on each of K marker lattices
 //!    ([`CalibrateConfig::lattices`], 4 by default: the scenario's and its first three
-//!    twins, below), and each zone's factor is the mean of the K fits ("Lattice").
+//!    twins, below), and each zone's factor is the mean of the K fits ("Lattice"). The K
+//!    fits are made at once, their batches of each step merged into one
+//!    ([`lockstep`](super::lockstep)): the runner sees a K-th of their batches, K times
+//!    larger, and each fit is what it would be alone.
 //! 3. **globals** (when asked): n1 then φ factors, each on a grid around 1 with the zones
 //!    fixed, judged on all rows; θ̂ from the profile's parabola (below).
 //! 4. a run at the fitted values gives the error after, the same run on three other marker
@@ -119,12 +122,14 @@
 
 use std::collections::BTreeMap;
 use std::path::Path;
+use std::sync::Mutex;
 
 use nalgebra::{DMatrix, DVector};
 use polars::prelude::*;
 use rayon::prelude::*;
 
 use super::least_squares::Linearised;
+use super::lockstep::Lockstep;
 use super::reconcile::{
     floats, predicted_frame, reconcile, strings, Frames, ReconcileError, Settings,
 };
@@ -564,7 +569,7 @@ fn parabola(points: &[(f64, (f64, usize))], bracket: (f64, f64)) -> Option<(f64,
 pub fn calibrate(
     p: &Problem,
     cfg: &CalibrateConfig,
-    progress: &mut dyn FnMut(usize, usize),
+    progress: &mut (dyn FnMut(usize, usize) + Send),
 ) -> Result<CalibrationReport, CalibrateError> {
     if cfg.zones.is_empty() && !cfg.fit_n1 && !cfg.fit_friction {
         return Err(CalibrateError::Input(
@@ -615,9 +620,23 @@ pub fn calibrate(
         *runs += k;
         progress(*runs, total);
     };
-    let mut first_evals = p.eval_all(&first, 0)?;
-    tick(first.len(), &mut runs);
-    let before = first_evals[0].clone();
+    // The start and the coarse grid on every lattice, as one batch.
+    let trials: Vec<Trial> = (0..lattices)
+        .flat_map(|lattice| {
+            first.iter().map(move |c| Trial {
+                calibration: c.clone(),
+                finer: 1.0,
+                lattice,
+            })
+        })
+        .collect();
+    let mut first_evals: Vec<Vec<Eval>> = Vec::with_capacity(lattices);
+    let mut evals = p.eval_trials(&trials)?.into_iter();
+    for _ in 0..lattices {
+        first_evals.push(evals.by_ref().take(first.len()).collect());
+    }
+    tick(trials.len(), &mut runs);
+    let before = first_evals[0][0].clone();
     let mut cal = start.clone();
     let mut profiles: BTreeMap<String, Profile> = BTreeMap::new();
     let mut joint_fit: Option<Joint> = None;
@@ -630,23 +649,44 @@ pub fn calibrate(
             coarse: &coarse,
             zone_rows: &zone_rows,
         };
-        // Steps 1–2 on each lattice, the scenario's first: its profiles are reported.
-        let mut fits = Vec::new();
-        for lattice in 0..lattices {
-            let evals = if lattice == 0 {
-                std::mem::take(&mut first_evals)
-            } else {
-                let e = p.eval_all(&first, lattice)?;
-                tick(first.len(), &mut runs);
-                e
-            };
-            let (fit, prof) =
-                fit_zones(p, cfg, &step1, evals, lattice, &mut |k| tick(k, &mut runs))?;
-            if lattice == 0 {
-                profiles = prof;
-            }
-            fits.push(fit);
+        // Steps 1–2 on each lattice, each on its own thread, their batches made together
+        // (`lockstep`); the scenario's lattice's profiles are reported.
+        let run = |trials: Vec<Trial>| p.runs.predict(p, &trials);
+        let group = Lockstep::new(&run, lattices);
+        let ticks = Mutex::new((&mut tick, &mut runs));
+        let fits = std::thread::scope(|s| {
+            let threads: Vec<_> = first_evals
+                .into_iter()
+                .enumerate()
+                .map(|(lattice, evals)| {
+                    let (group, step1, ticks) = (&group, &step1, &ticks);
+                    s.spawn(move || {
+                        let member = Member { group, lattice };
+                        let q = Problem {
+                            runs: &member,
+                            grade: p.grade.clone(),
+                            ..*p
+                        };
+                        let tick = &mut |k| {
+                            let mut t = ticks.lock().unwrap_or_else(|e| e.into_inner());
+                            let (tick, runs) = &mut *t;
+                            tick(k, runs)
+                        };
+                        fit_zones(&q, cfg, step1, evals, lattice, tick)
+                    })
+                })
+                .collect();
+            threads
+                .into_iter()
+                .map(|t| t.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
+                .collect::<Vec<_>>()
+        });
+        if let Some(e) = group.error() {
+            return Err(e);
         }
+        let mut fits = fits.into_iter().collect::<Result<Vec<_>, _>>()?;
+        profiles = std::mem::take(&mut fits[0].1);
+        let fits: Vec<Joint> = fits.into_iter().map(|f| f.0).collect();
         let n = fits.len() as f64;
         for (k, z) in cfg.zones.iter().enumerate() {
             let mean = fits.iter().map(|f| f.theta[k]).sum::<f64>() / n;
@@ -838,6 +878,29 @@ struct First<'a> {
     coarse: &'a [Calibration],
     /// Each zone's rows: those of the drawpoints whose zone it is (None: all rows).
     zone_rows: &'a BTreeMap<String, Option<String>>,
+}
+
+/// One lattice's fit's runner: its batches go out with the other lattices' fits' batches
+/// of the same step ([`Lockstep`]). The fit is finished when it is dropped (also when its
+/// thread panics), so the others never wait on it.
+struct Member<'g, 'a> {
+    group: &'g Lockstep<'a, Trial, DataFrame, CalibrateError>,
+    lattice: usize,
+}
+
+impl Runs for Member<'_, '_> {
+    fn predict(&self, _: &Problem, trials: &[Trial]) -> Result<Vec<DataFrame>, CalibrateError> {
+        // A failed round's own error is returned by `calibrate` (`Lockstep::error`).
+        self.group
+            .ask(self.lattice, trials.to_vec())
+            .ok_or_else(|| CalibrateError::Runs("a batch failed".into()))
+    }
+}
+
+impl Drop for Member<'_, '_> {
+    fn drop(&mut self) {
+        self.group.finish();
+    }
 }
 
 /// Steps 1–2 (module docs) on marker lattice `lattice`, from the runs of `first` made on

@@ -17,6 +17,8 @@
 //!   the engine many times in parallel;
 //! - [`calibrate_runs`]: `caveflow calibrate`'s runs as a study, locally or by an external
 //!   runner such as the Ray driver, resumable;
+//! - [`lockstep`]: `calibrate`'s fits on several marker lattices made at once, their
+//!   batches merged round by round;
 //! - [`least_squares`]: the Levenberg–Marquardt step and the covariance of `calibrate`'s
 //!   joint fit of several zones.
 //!
@@ -29,6 +31,8 @@ pub mod calibrate;
 #[cfg(feature = "analysis")]
 pub mod calibrate_runs;
 pub mod least_squares;
+#[cfg(feature = "analysis")]
+pub mod lockstep;
 #[cfg(feature = "analysis")]
 pub mod reconcile;
 pub mod records;
