@@ -17,6 +17,7 @@
 //! what it would have got alone, bit for bit.
 
 use std::collections::BTreeMap;
+use std::panic::AssertUnwindSafe;
 use std::sync::{Condvar, Mutex, MutexGuard};
 
 /// A batch runner shared by chains made in lockstep: items `T`, results `R`, errors `E`.
@@ -69,8 +70,8 @@ impl<'a, T, R, E> Lockstep<'a, T, R, E> {
         }
     }
 
-    /// Chain `chain` asks no more (done, failed or panicked): the round the others wait on
-    /// may now be complete.
+    /// A chain asks no more (done, failed or panicked): the round the others wait on may now
+    /// be complete.
     pub fn finish(&self) {
         let mut r = self.lock();
         r.running -= 1;
@@ -96,22 +97,31 @@ impl<'a, T, R, E> Lockstep<'a, T, R, E> {
         }
         let asked = std::mem::take(&mut r.asked);
         let sizes: Vec<(usize, usize)> = asked.iter().map(|(&c, b)| (c, b.len())).collect();
-        match (self.run)(asked.into_values().flatten().collect()) {
-            Ok(results) => {
+        // A runner that panics fails the round for every chain in it (none is left waiting)
+        // and the panic goes on up this chain's thread.
+        let items = asked.into_values().flatten().collect();
+        let made = std::panic::catch_unwind(AssertUnwindSafe(|| (self.run)(items)));
+        let mut panic = None;
+        match made {
+            Ok(Ok(results)) => {
                 let mut results = results.into_iter();
-                for (chain, n) in sizes {
+                for &(chain, n) in &sizes {
                     r.answers
                         .insert(chain, Some(results.by_ref().take(n).collect()));
                 }
             }
-            Err(e) => {
+            Ok(Err(e)) => {
                 r.error.get_or_insert(e);
-                for (chain, _) in sizes {
-                    r.answers.insert(chain, None);
-                }
             }
+            Err(p) => panic = Some(p),
+        }
+        for (chain, _) in sizes {
+            r.answers.entry(chain).or_insert(None);
         }
         self.answered.notify_all();
+        if let Some(p) = panic {
+            std::panic::resume_unwind(p);
+        }
     }
 }
 
@@ -192,5 +202,29 @@ mod tests {
         assert_eq!(error.as_deref(), Some("the runner failed"));
         assert_eq!(got, vec![Some(vec![0.5]), None, None]);
         assert_eq!(batches.len(), 2);
+    }
+
+    /// A runner that panics fails the round for every chain in it, so none waits for
+    /// ever, and the panic reaches the thread that made the round.
+    #[test]
+    fn a_panicking_runner_leaves_no_chain_waiting() {
+        let run = |_: Vec<u8>| -> Result<Vec<u8>, ()> { panic!("the runner panicked") };
+        let group = Lockstep::new(&run, 2);
+        let joined: Vec<std::thread::Result<Option<Vec<u8>>>> = std::thread::scope(|s| {
+            let threads: Vec<_> = (0..2)
+                .map(|k| {
+                    let group = &group;
+                    s.spawn(move || {
+                        let got = group.ask(k, vec![k as u8]);
+                        group.finish();
+                        got
+                    })
+                })
+                .collect();
+            threads.into_iter().map(|t| t.join()).collect()
+        });
+        let panicked = joined.iter().filter(|j| j.is_err()).count();
+        let failed = joined.iter().filter(|j| matches!(j, Ok(None))).count();
+        assert_eq!((panicked, failed), (1, 1));
     }
 }
