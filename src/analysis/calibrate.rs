@@ -451,15 +451,7 @@ impl Problem<'_> {
 
     /// Runs each of `cals` on marker lattice `lattice` ([`Trial::lattice`]), as one batch.
     fn eval_all(&self, cals: &[Calibration], lattice: usize) -> Result<Vec<Eval>, CalibrateError> {
-        let trials: Vec<Trial> = cals
-            .iter()
-            .map(|c| Trial {
-                calibration: c.clone(),
-                finer: 1.0,
-                lattice,
-            })
-            .collect();
-        self.eval_trials(&trials)
+        self.eval_trials(&trials_on(cals, lattice).collect::<Vec<_>>())
     }
 
     /// [`Problem::eval_all`] of the scenario's calibration with the zones' factors at each
@@ -622,13 +614,7 @@ pub fn calibrate(
     };
     // The start and the coarse grid on every lattice, as one batch.
     let trials: Vec<Trial> = (0..lattices)
-        .flat_map(|lattice| {
-            first.iter().map(move |c| Trial {
-                calibration: c.clone(),
-                finer: 1.0,
-                lattice,
-            })
-        })
+        .flat_map(|lattice| trials_on(&first, lattice))
         .collect();
     let mut first_evals: Vec<Vec<Eval>> = Vec::with_capacity(lattices);
     let mut evals = p.eval_trials(&trials)?.into_iter();
@@ -1111,6 +1097,15 @@ fn correlation(c: &DMatrix<f64>) -> Vec<Vec<f64>> {
                 .collect()
         })
         .collect()
+}
+
+/// The runs of `cals` at the resolved resolution on marker lattice `lattice`.
+fn trials_on(cals: &[Calibration], lattice: usize) -> impl Iterator<Item = Trial> + '_ {
+    cals.iter().map(move |c| Trial {
+        calibration: c.clone(),
+        finer: 1.0,
+        lattice,
+    })
 }
 
 /// Zone `z`'s fragment factor in `c` (1 where `c` names none).
