@@ -134,6 +134,13 @@ pub struct RunArgs {
     /// surface at outputs.vtk_periods, by default the sections' moments).
     #[arg(long)]
     pub vtk: bool,
+    /// Print the run's account to stderr at the end: wall time per phase of the engine
+    /// (IMZ growth, engulfing, grids, row selection, marker pass, crediting, mobilised
+    /// sums, air gap, period end) and of the outputs, and the work counters (updates,
+    /// marker steps, candidate tests and hits, disk-cycles). Costs a counting pass per
+    /// update; a run without it keeps no account.
+    #[arg(long)]
+    pub account: bool,
 }
 
 /// Name of the checkpoint file in the output directory.
@@ -437,6 +444,12 @@ fn run(a: RunArgs) -> Result<ExitCode> {
         }
         _ => (Engine::new(scene, &sc)?.with_trace(&loaded.trace), 0),
     };
+    let engine = if a.account {
+        engine.keep_account()
+    } else {
+        engine
+    };
+    let engine_started = Instant::now();
     let bar = progress(scene.periods.len() as u64, "periods");
     bar.set_position(first as u64);
     let (every, minutes) = (a.checkpoint_every, a.checkpoint_minutes);
@@ -458,6 +471,8 @@ fn run(a: RunArgs) -> Result<ExitCode> {
         )
     })?;
     bar.finish_and_clear();
+    let engine_wall = engine_started.elapsed();
+    let account = out.account.clone();
     let command = std::env::args().collect::<Vec<_>>().join(" ");
     let moments = scene.moments(&sc.outputs.section_periods);
     let charts = if sc.outputs.charts {
@@ -533,6 +548,14 @@ fn run(a: RunArgs) -> Result<ExitCode> {
     );
     if let Some(page) = report {
         println!("report: {}", page.display());
+    }
+    if let Some(account) = account {
+        let outputs = started.elapsed().saturating_sub(engine_wall).as_secs_f64();
+        eprint!("{}", account.report());
+        eprintln!(
+            "engine wall {:.2} s; set-up and outputs (loading, charts, report, tables) {outputs:.2} s",
+            engine_wall.as_secs_f64()
+        );
     }
     Ok(ExitCode::SUCCESS)
 }

@@ -39,6 +39,7 @@
 //! 1 ± [`CORRECTION_MEDIAN_TOLERANCE`] warns: that is a bias of the kinematics, not
 //! discreteness.
 
+pub mod account;
 mod air_gap;
 mod balance;
 pub mod cadence;
@@ -58,9 +59,12 @@ pub mod stability;
 pub mod stress;
 pub mod trace;
 
+use std::time::Instant;
+
 use rayon::prelude::*;
 
 use crate::model::{Scenario, Scene};
+use account::{Account, Phase};
 pub use balance::{
     correction_stats, correction_warning, CORRECTION_BOUNDS, CORRECTION_MEDIAN_TOLERANCE,
 };
@@ -170,6 +174,8 @@ pub struct Engine<'a> {
     /// The periods whose free surface the charts' sections through time and the VTK export
     /// need (`Scene::moments`, `Scene::vtk_periods`).
     moments: Vec<i64>,
+    /// Time per phase and work counters, when asked for ([`Engine::keep_account`]).
+    account: Option<Box<Account>>,
 }
 
 impl<'a> Engine<'a> {
@@ -291,6 +297,26 @@ impl<'a> Engine<'a> {
                 m.extend(scene.vtk_periods(o));
                 m
             },
+            account: None,
+        }
+    }
+
+    /// Keeps an account of the run's time per phase and its work counters
+    /// ([`account`]), returned in [`RunOutput::account`].
+    pub fn keep_account(mut self) -> Self {
+        self.account = Some(Box::default());
+        self
+    }
+
+    /// The clock, when an account is kept.
+    fn clock(&self) -> Option<Instant> {
+        self.account.as_ref().map(|_| Instant::now())
+    }
+
+    /// Charges the time since `t` to `phase` (when an account is kept) and restarts `t`.
+    fn charge(&mut self, phase: Phase, t: &mut Option<Instant>) {
+        if let (Some(a), Some(t)) = (self.account.as_mut(), t.as_mut()) {
+            a.charge(phase, t);
         }
     }
 
@@ -327,7 +353,9 @@ impl<'a> Engine<'a> {
         let n = self.scene.periods.len();
         for p in first..n {
             // The rows in the order of their cells, for the cache (`Bins::tidy`).
+            let mut t = self.clock();
             self.bins.tidy(&mut self.markers);
+            self.charge(Phase::PeriodEnd, &mut t);
             self.run_period(p);
             progress(p + 1, n);
             after(&self, p + 1)?;
@@ -410,7 +438,9 @@ impl<'a> Engine<'a> {
                 window == 1 || m.refreshed_at == 0 || m.drew_at >= m.refreshed_at + window
             })
             .collect();
+        let mut t = self.clock();
         self.refresh_mobilised(&stale);
+        self.charge(Phase::Mobilised, &mut t);
         for &d in &stale {
             self.imzs[d].refreshed_at = self.steps_done.max(1);
         }
@@ -457,6 +487,7 @@ impl<'a> Engine<'a> {
     }
 
     fn step(&mut self, period: i64, row: &[f64], steps: usize, drawing: &[usize]) {
+        let mut t = self.clock();
         let bm = &self.scene.blocks;
         let mut geoms = std::mem::take(&mut self.geoms);
         copy_geoms(&self.imzs, &mut geoms);
@@ -474,12 +505,14 @@ impl<'a> Engine<'a> {
         drawing.iter().for_each(|&d| is_drawing[d] = true);
         let u = self.steps_done + 1;
         let cadence = self.cadence;
-        self.imzs
+        self.charge(Phase::Grids, &mut t);
+        let disk_cycles: u64 = self
+            .imzs
             .par_iter_mut()
             .filter(|m| is_drawing[m.id])
-            .for_each(|imz| {
+            .map(|imz| {
                 imz.begin_interval();
-                imz.draw(row[imz.id] / steps as f64, &ground, &params);
+                let cycles = imz.draw(row[imz.id] / steps as f64, &ground, &params);
                 imz.finish_interval(&ground, &params);
                 markers::prepare(&mut imz.motion, imz.geom.h);
                 imz.drew_at = u;
@@ -487,10 +520,22 @@ impl<'a> Engine<'a> {
                     let dv = imz.motion.iter().map(|m| (m.dv, m.dv_out));
                     cadence::accumulate(&mut imz.windows, dv);
                 }
-            });
+                cycles
+            })
+            .sum();
+        self.charge(Phase::Growth, &mut t);
+        let before = self.markers.len();
         self.engulf(period, drawing);
         let mut cells = Vec::new();
         self.bins.add_new(&self.markers, &mut cells);
+        if let Some(a) = self.account.as_mut() {
+            let c = &mut a.counters;
+            c.updates += 1;
+            c.disk_cycles += disk_cycles;
+            c.imz_draws += drawing.len() as u64;
+            c.engulfed += (self.markers.len() - before) as u64;
+        }
+        self.charge(Phase::Engulf, &mut t);
         copy_geoms(&self.imzs, &mut geoms);
         // The levels whose windows end now, and the IMZs that drew in each window.
         let due = cadence.due(u);
@@ -498,6 +543,7 @@ impl<'a> Engine<'a> {
         // The active set: only markers binned where a drawing IMZ reaches can move, and of
         // those only the ones whose level is due.
         let grids = self.level_grids(&geoms, &active);
+        self.charge(Phase::Grids, &mut t);
         let (mut cells, rows) = if cadence.max_level > 0 {
             // A marker steps when its level is due and an IMZ that drew in its window
             // reaches its cell (elsewhere its step would be zero). Such a marker is binned
@@ -518,6 +564,7 @@ impl<'a> Engine<'a> {
             (cells, std::mem::take(&mut self.rows))
         };
         self.marker_steps += rows.len() as u64;
+        self.charge(Phase::Rows, &mut t);
         let owned = self.window_motions(&active);
         let motion = level_motions(&self.imzs, &is_drawing, &owned);
         let (ground, seed) = ((&self.scene.blocks, period), self.scenario.seed);
@@ -533,6 +580,14 @@ impl<'a> Engine<'a> {
         };
         let hook = |mk: &Markers, k: usize, st: &mut markers::Step| perc.apply(mk, k, st);
         let extra: Option<markers::StepHook> = self.scenario.mechanisms.fines.then_some(&hook);
+        if let Some(a) = self.account.as_mut() {
+            a.charge(Phase::Grids, t.as_mut().unwrap());
+            let (tests, hits) = markers::count_candidates(&self.markers, &fields, &rows);
+            let c = &mut a.counters;
+            (c.candidate_tests, c.hits) = (c.candidate_tests + tests, c.hits + hits);
+            c.marker_steps += rows.len() as u64;
+            a.charge(Phase::Counting, t.as_mut().unwrap());
+        }
         let drawn = if cadence.max_level == 0 && rows.len() == self.markers.len() {
             // Every marker is active: the contiguous pass (the same steps, no row windows).
             markers::move_markers(&mut self.markers, &fields[0], extra)
@@ -541,9 +596,11 @@ impl<'a> Engine<'a> {
             markers::move_rows(&mut self.markers, &fields, extra, &rows, c)
         };
         drop(fields);
+        self.charge(Phase::MarkerPass, &mut t);
         self.geoms = geoms;
         self.restart_windows(&active);
         self.after_move(period, rows, &mut cells, drawn);
+        self.charge(Phase::Crediting, &mut t);
     }
 
     /// Per cadence level 0..=`top`, the IMZs that drew in its window at update `u` (level
@@ -645,6 +702,9 @@ impl<'a> Engine<'a> {
             self.bins.swap_remove(k);
             by.push(d);
         }
+        if let Some(a) = self.account.as_mut() {
+            a.counters.drawn += by.len() as u64;
+        }
         let mut order: Vec<u32> = (0..by.len() as u32).collect();
         order.sort_unstable_by_key(|&j| batch.id[j as usize]);
         batch.permute(&order);
@@ -694,6 +754,12 @@ impl<'a> Engine<'a> {
         let (ground, seed) = ((&self.scene.blocks, period), self.scenario.seed);
         let fields = level_fields(&geoms, &motion, &grids, ground, seed);
         self.marker_steps += lagging.len() as u64;
+        if let Some(a) = self.account.as_mut() {
+            let (tests, hits) = markers::count_candidates(&self.markers, &fields, &lagging);
+            let c = &mut a.counters;
+            (c.candidate_tests, c.hits) = (c.candidate_tests + tests, c.hits + hits);
+            c.marker_steps += lagging.len() as u64;
+        }
         let drawn = markers::move_rows(
             &mut self.markers,
             &fields,
@@ -910,6 +976,7 @@ impl<'a> Engine<'a> {
 
     /// Writes the period's extraction rows and snapshots, and applies the correction.
     fn close_period(&mut self, p: usize, period: i64, drawing: &[usize]) {
+        let mut t = self.clock();
         let scene = self.scene;
         let last = p + 1 == scene.periods.len();
         let surface = &self.scenario.outputs.surface_periods;
@@ -999,7 +1066,9 @@ impl<'a> Engine<'a> {
                 }
             }
         }
+        self.charge(Phase::PeriodEnd, &mut t);
         self.record_air_gap(period);
+        self.charge(Phase::AirGap, &mut t);
         self.trace.record(period, &mut self.out.trace);
         let wanted = &self.scenario.outputs.surface_periods;
         let written = wanted.contains(&period) || (wanted.is_empty() && last);
@@ -1027,6 +1096,7 @@ impl<'a> Engine<'a> {
             field.drawn_tonnes = self.cum.clone();
             self.out.stress.push(field);
         }
+        self.charge(Phase::PeriodEnd, &mut t);
     }
 
     /// Marker states now: every moving and drawn marker, sorted by id.
@@ -1124,6 +1194,7 @@ impl<'a> Engine<'a> {
 
     /// Completes the output: the drawn-marker table, the mass balance and warnings.
     fn finish(mut self) -> RunOutput {
+        let mut clock = self.clock();
         self.read_streams();
         let bm = &self.scene.blocks;
         let dm = &self.drawn;
@@ -1181,6 +1252,8 @@ impl<'a> Engine<'a> {
                 });
             }
         }
+        self.charge(Phase::Finish, &mut clock);
+        self.out.account = self.account.take().map(|a| *a);
         self.out
     }
 }

@@ -396,6 +396,10 @@ pub struct RunOutput {
     pub stress: Vec<super::stress::StressField>,
     /// Trace points at the end of every period (empty without trace points).
     pub trace: TraceTable,
+    /// Time per phase and work counters, when the engine kept an account
+    /// (`Engine::keep_account`).
+    #[serde(skip)]
+    pub account: Option<super::account::Account>,
 }
 
 /// Row statuses of the extraction report.

@@ -1257,3 +1257,52 @@ fn multi_rate_cadence_saves_steps_and_keeps_the_draw() {
     assert!(q(0.5) < 0.25 * res.max_marker_move, "{}", q(0.5));
     assert!(q(0.9) < res.max_marker_move, "{}", q(0.9));
 }
+
+/// The run's account (`engine::account`) is a view: a run that keeps one writes every
+/// output bit for bit as one that does not, and its counters agree with what the engine
+/// counts anyway (marker steps, markers engulfed and drawn) and with each other (a hit is
+/// a candidate that held the marker; every stepped marker lies in at least one IMZ only
+/// where it moves, so hits per step lie between 0 and the candidates per step).
+#[test]
+fn the_account_changes_no_result_and_adds_up() {
+    use caveflow::model::demo::{self, DemoScale};
+    let mut scene = demo::henderson(DemoScale::Small, 42);
+    scene.keep_periods(4);
+    let sc = demo::scenario(DemoScale::Small, 42);
+    let plain = Engine::new(&scene, &sc).unwrap().run(&mut |_, _| {});
+    let mut e = Engine::new(&scene, &sc).unwrap().keep_account();
+    for p in 0..scene.periods.len() {
+        e.run_period(p);
+    }
+    let steps = e.marker_steps;
+    let kept = e
+        .run_from(scene.periods.len(), &mut |_, _| {}, &mut |_, _| {
+            Ok::<(), ()>(())
+        })
+        .unwrap();
+    assert!(plain.account.is_none());
+    let account = kept.account.clone().expect("an account");
+    assert_eq!(
+        encoded(&plain),
+        encoded(&kept),
+        "the account moved an output"
+    );
+    let c = account.counters;
+    eprintln!("{}", account.report());
+    assert_eq!(c.marker_steps, steps, "every marker step counted once");
+    assert_eq!(c.engulfed, kept.balance.markers_mobilised);
+    assert_eq!(c.drawn, kept.balance.markers_drawn);
+    assert!(c.updates > 0 && c.imz_draws >= c.updates && c.disk_cycles >= c.imz_draws);
+    assert!(c.hits > 0 && c.hits < c.candidate_tests, "{c:?}");
+    use caveflow::engine::account::{Phase, PHASES};
+    for p in [
+        Phase::Growth,
+        Phase::MarkerPass,
+        Phase::PeriodEnd,
+        Phase::Finish,
+    ] {
+        assert!(account.time(p).as_nanos() > 0, "{} never charged", p.name());
+    }
+    let sum: std::time::Duration = PHASES.iter().map(|&p| account.time(p)).sum();
+    assert!(account.engine_time() < sum);
+}

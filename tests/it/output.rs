@@ -313,6 +313,7 @@ fn fake_run(scene: &Scene) -> RunOutput {
         },
         stress: Vec::new(),
         trace: Default::default(),
+        account: None,
     }
 }
 

@@ -404,24 +404,26 @@ impl Imz {
     /// cycle size: at a sixteenth the IMZ width is within ~2% of the small-cycle limit
     /// early in a draw (a quarter: ~5%), and less as the IMZ grows
     /// (`tests::growth_conserves_void_respects_the_base_angle_and_converges_with_cycle_size`).
-    pub fn draw(&mut self, tonnes: f64, g: &Ground, p: &ImzParams) {
+    ///
+    /// Returns the disk-cycles made: the disks the cycles' void passed through, summed
+    /// (`engine::account`).
+    pub fn draw(&mut self, tonnes: f64, g: &Ground, p: &ImzParams) -> u64 {
         self.refresh_stagnant(0, g, p);
         let (_, _, rho1) = self.props(0);
         if !(rho1 > 0.0) {
             // The drawpoint sits in unflowable ground: nothing can be drawn.
-            return;
+            return 0;
         }
         let v0 = tonnes / rho1;
         let r0 = self.geom.radius[0];
         let cycle = 0.0625 * PI * r0 * r0 * self.geom.h;
         let n = ((v0 / cycle).ceil() as usize).max(1);
-        for _ in 0..n {
-            self.pass(v0 / n as f64, g, p);
-        }
+        (0..n).map(|_| self.pass(v0 / n as f64, g, p)).sum()
     }
 
-    /// One cycle: passes void `v0` up from the drawpoint through the disks.
-    fn pass(&mut self, v0: f64, g: &Ground, p: &ImzParams) {
+    /// One cycle: passes void `v0` up from the drawpoint through the disks; returns the
+    /// number of disks it passed through.
+    fn pass(&mut self, v0: f64, g: &Ground, p: &ImzParams) -> u64 {
         let h = self.geom.h;
         let mut v = v0;
         let mut i = 0;
@@ -438,7 +440,7 @@ impl Imz {
                         self.vented += v;
                     }
                     self.blocked = true;
-                    return;
+                    return i as u64;
                 }
                 // The ground above has caved: the air gap stored at the top closes into it.
                 v += std::mem::take(&mut self.air);
@@ -513,6 +515,7 @@ impl Imz {
             self.motion[i].dv_out += v;
             i += 1;
         }
+        i as u64
     }
 
     /// Fills void `v` entering disk i by the r-law, widening it up to `ring.limit`, and

@@ -386,6 +386,22 @@ pub fn move_rows(
     drawn.concat()
 }
 
+/// The candidate tests and hits of a marker pass over `rows` (`engine::account`), each row
+/// at its own cadence level's field (level 0 where there is one field).
+pub fn count_candidates(mk: &Markers, fields: &[MotionField], rows: &[u32]) -> (u64, u64) {
+    rows.par_iter()
+        .map(|&k| {
+            let k = k as usize;
+            let level = if fields.len() > 1 {
+                mk.level[k] as usize
+            } else {
+                0
+            };
+            fields[level].candidates([mk.x[k], mk.y[k], mk.z[k]])
+        })
+        .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1))
+}
+
 /// Disjoint windows `col[lo..hi]` for ascending, non-overlapping spans.
 fn windows<'a, T>(mut col: &'a mut [T], spans: &[(usize, usize)]) -> Vec<&'a mut [T]> {
     let mut out = Vec::with_capacity(spans.len());

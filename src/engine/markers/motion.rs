@@ -430,51 +430,14 @@ impl MotionField<'_> {
                 visit(d, 1.0, 1.0, h);
             }
         }
-        // The model's vertical walls (method of images): an IMZ whose disk passes a wall
-        // also moves the marker as its mirror image across that wall would, so the flow
-        // along a wall has no component through it and a cut disk's flux stays whole in the
-        // model. The images of the IMZs of the cell at the wall nearest the mirrored point
-        // are the candidates, where the marker is within the images' reach of the wall
-        // ([`WallReach`]). Within reach of two walls, the images across both (the
-        // corner's) as well.
-        if let Some((bm, _)) = self.ground {
-            let (lo, hi) = (bm.origin, bm.max_corner());
-            let reach = self.reach.at(p[2]);
-            // Per axis, the two walls: (the wall, a point just inside it, its reach index).
-            let walls = |a: usize| {
-                [
-                    (lo[a], lo[a] + 1e-9, 2 * a),
-                    (hi[a], hi[a] - 1e-9, 2 * a + 1),
-                ]
-                .into_iter()
-                .filter(move |&(wall, _, w)| (p[a] - wall).abs() <= reach[w])
-            };
-            // The images of the IMZs listed at plan point `at` that hold `q`, plan components
-            // multiplied by (sx, sy).
-            let mut images = |at: [f64; 2], q: [f64; 3], sx: f64, sy: f64| {
-                for &d in self.grid.at(at[0], at[1]) {
-                    if let Some(h) = self.geoms[d as usize].disk_at(q) {
-                        visit(d, sx, sy, h);
-                    }
-                }
-            };
-            for (wall, inside, _) in walls(0) {
-                images([inside, p[1]], [2.0 * wall - p[0], p[1], p[2]], -1.0, 1.0);
-            }
-            for (wall, inside, _) in walls(1) {
-                images([p[0], inside], [p[0], 2.0 * wall - p[1], p[2]], 1.0, -1.0);
-            }
-            for (wx, in_x, _) in walls(0) {
-                for (wy, in_y, _) in walls(1) {
-                    images(
-                        [in_x, in_y],
-                        [2.0 * wx - p[0], 2.0 * wy - p[1], p[2]],
-                        -1.0,
-                        -1.0,
-                    );
+        // The IMZs' images across the model's walls ([`MotionField::images`]).
+        self.images(p, |at, q, sx, sy| {
+            for &d in self.grid.at(at[0], at[1]) {
+                if let Some(h) = self.geoms[d as usize].disk_at(q) {
+                    visit(d, sx, sy, h);
                 }
             }
-        }
+        });
         // Transfer into the disk below (Δa′, Δz′), along one IMZ's streamtube, for every
         // disk base of that IMZ the summed move crosses, by the depth the summed move
         // reaches below it (split: at the first base reached, with no depth). Where
@@ -597,6 +560,65 @@ impl MotionField<'_> {
             st.drawn_by = u32::MAX;
         }
         (st, used)
+    }
+}
+
+impl MotionField<'_> {
+    /// The model's vertical walls (method of images): an IMZ whose disk passes a wall
+    /// also moves the marker as its mirror image across that wall would, so the flow
+    /// along a wall has no component through it and a cut disk's flux stays whole in the
+    /// model. The images of the IMZs of the cell at the wall nearest the mirrored point
+    /// are the candidates, where the marker is within the images' reach of the wall
+    /// ([`WallReach`]). Within reach of two walls, the images across both (the
+    /// corner's) as well. Calls `f(at, q, sx, sy)` per image: the plan point whose grid
+    /// cell lists the candidates, the marker's mirror `q`, and the signs (sx, sy) that map
+    /// the image's plan moves to the marker's.
+    #[inline]
+    fn images(&self, p: [f64; 3], mut f: impl FnMut([f64; 2], [f64; 3], f64, f64)) {
+        let Some((bm, _)) = self.ground else { return };
+        let (lo, hi) = (bm.origin, bm.max_corner());
+        let reach = self.reach.at(p[2]);
+        // Per axis, the two walls: (the wall, a point just inside it, its reach index).
+        let walls = |a: usize| {
+            [
+                (lo[a], lo[a] + 1e-9, 2 * a),
+                (hi[a], hi[a] - 1e-9, 2 * a + 1),
+            ]
+            .into_iter()
+            .filter(move |&(wall, _, w)| (p[a] - wall).abs() <= reach[w])
+        };
+        for (wall, inside, _) in walls(0) {
+            f([inside, p[1]], [2.0 * wall - p[0], p[1], p[2]], -1.0, 1.0);
+        }
+        for (wall, inside, _) in walls(1) {
+            f([p[0], inside], [p[0], 2.0 * wall - p[1], p[2]], 1.0, -1.0);
+        }
+        for (wx, in_x, _) in walls(0) {
+            for (wy, in_y, _) in walls(1) {
+                f(
+                    [in_x, in_y],
+                    [2.0 * wx - p[0], 2.0 * wy - p[1], p[2]],
+                    -1.0,
+                    -1.0,
+                );
+            }
+        }
+    }
+
+    /// How many IMZs (and images across the walls) [`MotionField::part`] tests for a
+    /// marker at `p`, and how many of them hold it (`engine::account`): the same candidate
+    /// loops, counting instead of moving.
+    pub fn candidates(&self, p: [f64; 3]) -> (u64, u64) {
+        let (mut tests, mut hits) = (0u64, 0u64);
+        let mut count = |at: [f64; 2], q: [f64; 3]| {
+            for &d in self.grid.at(at[0], at[1]) {
+                tests += 1;
+                hits += u64::from(self.geoms[d as usize].disk_at(q).is_some());
+            }
+        };
+        count([p[0], p[1]], p);
+        self.images(p, |at, q, _, _| count(at, q));
+        (tests, hits)
     }
 }
 
