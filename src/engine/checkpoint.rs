@@ -21,7 +21,7 @@ use super::{Engine, EngineError, RunOutput};
 use crate::model::{Scenario, Scene};
 
 /// Format version: bump when the state's layout changes.
-const VERSION: u32 = 7;
+const VERSION: u32 = 8;
 
 #[derive(Serialize, Deserialize)]
 struct State {
@@ -131,6 +131,7 @@ impl<'a> Engine<'a> {
         e.out = s.out;
         // The marker bins, the streams and the scheduled tonnes so far are derived state.
         e.bins.sync(&e.markers);
+        e.count_all();
         let d = &e.drawn;
         if d.tau.len() != d.m.len() {
             return Err(bad("does not fit this scene".into()));

@@ -158,17 +158,19 @@ pub struct Engine<'a> {
     /// Scratch: a copy of every IMZ's geometry ([`copy_geoms`]), kept between steps so that
     /// its allocations are reused.
     geoms: Vec<ImzGeom>,
-    /// Plan cells (of `bins`) where markers moved, appeared or left since the air gap was
-    /// last recorded.
-    moved_cells: Vec<bool>,
+    /// Per block column (i + n_x j), whether its marker mass changed since the air gap was
+    /// last recorded (`air_gap`).
+    dirty_cols: Vec<bool>,
     /// Whether every block column's air gap must be recomputed (ground caved, rilling).
     all_moved: bool,
+    /// Per block, the mass of the moving markers that lie in it, in fixed point (`air_gap`).
+    fixed_mass: Vec<i64>,
+    /// Per block, its column i + n_x j.
+    block_col: Vec<u32>,
     /// How often each marker steps (`engine::cadence`).
     cadence: Cadence,
     /// Air-gap height per block column (i + n_x j) as last recorded, m.
     air_col: Vec<f64>,
-    /// Scratch: mass per block for the air gap, t.
-    block_mass: Vec<f64>,
     /// The trace points (`trace`; none unless [`Engine::with_trace`]).
     trace: trace::Trace,
     /// The periods whose free surface the charts' sections through time and the VTK export
@@ -285,10 +287,11 @@ impl<'a> Engine<'a> {
             ),
             rows: Vec::new(),
             geoms: Vec::new(),
-            moved_cells: Vec::new(),
+            dirty_cols: vec![true; bm.dims[0] * bm.dims[1]],
             all_moved: true,
+            fixed_mass: vec![0; bm.len()],
+            block_col: block_columns(bm),
             air_col: vec![0.0; bm.dims[0] * bm.dims[1]],
-            block_mass: vec![0.0; bm.len()],
             cadence,
             trace: trace::Trace::default(),
             moments: {
@@ -367,23 +370,16 @@ impl<'a> Engine<'a> {
         grid_cell(&self.scene.blocks, self.resolution.marker_spacing)
     }
 
-    /// The cells that the IMZs `which` can reach (their plan bounding boxes and one cell
-    /// around), added to `cells`, sorted and without repeats.
-    fn cells_near(&self, geoms: &[ImzGeom], which: &[usize], cells: Vec<usize>) -> Vec<usize> {
+    /// Rows (ascending) of the markers binned in the cells that the IMZs `which` can
+    /// reach (their plan bounding boxes and one cell around), into `self.rows`.
+    fn rows_near(&mut self, geoms: &[ImzGeom], which: &[usize]) {
         let rects = which.iter().map(|&d| {
             let g = &geoms[d];
             let r = g.max_radius();
             ([g.x - r, g.x + r], [g.y - r, g.y + r])
         });
-        self.bins.cells_of(rects, 1, &cells)
-    }
-
-    /// Rows (ascending) of the markers binned in the cells that the IMZs `which` can
-    /// reach ([`Engine::cells_near`]), into `self.rows`; returns the cells.
-    fn rows_near(&mut self, geoms: &[ImzGeom], which: &[usize], cells: Vec<usize>) -> Vec<usize> {
-        let cells = self.cells_near(geoms, which, cells);
+        let cells = self.bins.cells_of(rects, 1, &[]);
         self.bins.rows_in(&cells, &mut self.rows);
-        cells
     }
 
     /// Calls `f` with the motion field of every IMZ's last interval, as a marker update
@@ -526,8 +522,7 @@ impl<'a> Engine<'a> {
         self.charge(Phase::Growth, &mut t);
         let before = self.markers.len();
         self.engulf(period, drawing);
-        let mut cells = Vec::new();
-        self.bins.add_new(&self.markers, &mut cells);
+        self.bins.add_new(&self.markers);
         if let Some(a) = self.account.as_mut() {
             let c = &mut a.counters;
             c.updates += 1;
@@ -544,7 +539,7 @@ impl<'a> Engine<'a> {
         // those only the ones whose level is due.
         let grids = self.level_grids(&geoms, &active);
         self.charge(Phase::Grids, &mut t);
-        let (mut cells, rows) = if cadence.max_level > 0 {
+        let rows = if cadence.max_level > 0 {
             // A marker steps when its level is due and an IMZ that drew in its window
             // reaches its cell (elsewhere its step would be zero). Such a marker is binned
             // in a cell near the IMZs of the longest window due (its level's IMZs are among
@@ -552,16 +547,14 @@ impl<'a> Engine<'a> {
             // those cells would list and filter; the serial listing cost more at mine scale.
             // A row whose level is not due costs one byte read; ground no IMZ has reached
             // has no markers yet (`Engine::engulf`), so it still costs nothing.
-            let cells = self.cells_near(&geoms, &active[due as usize], cells);
             let mk = &self.markers;
-            let rows: Vec<u32> = (0..mk.len() as u32)
+            (0..mk.len() as u32)
                 .into_par_iter()
                 .filter(|&k| mk.level[k as usize] <= due && reached(mk, k, &grids))
-                .collect();
-            (cells, rows)
+                .collect()
         } else {
-            let cells = self.rows_near(&geoms, &active[due as usize], cells);
-            (cells, std::mem::take(&mut self.rows))
+            self.rows_near(&geoms, &active[due as usize]);
+            std::mem::take(&mut self.rows)
         };
         self.marker_steps += rows.len() as u64;
         self.charge(Phase::Rows, &mut t);
@@ -599,7 +592,7 @@ impl<'a> Engine<'a> {
         self.charge(Phase::MarkerPass, &mut t);
         self.geoms = geoms;
         self.restart_windows(&active);
-        self.after_move(period, rows, &mut cells, drawn);
+        self.after_move(period, rows, drawn);
         self.charge(Phase::Crediting, &mut t);
     }
 
@@ -674,22 +667,16 @@ impl<'a> Engine<'a> {
         }
     }
 
-    /// After a marker pass over `rows`: attrition, the bins, the air-gap cells, and the
-    /// drawn markers credited and moved out.
-    fn after_move(
-        &mut self,
-        period: i64,
-        rows: Vec<u32>,
-        cells: &mut Vec<usize>,
-        mut drawn: Vec<(usize, u32)>,
-    ) {
+    /// After a marker pass over `rows`: attrition, the bins, the air gap's block masses,
+    /// and the drawn markers credited and moved out.
+    fn after_move(&mut self, period: i64, rows: Vec<u32>, mut drawn: Vec<(usize, u32)>) {
         if self.scenario.mechanisms.fragmentation {
             let bm = &self.scene.blocks;
             fragmentation::attrite(&mut self.markers, bm, &self.scenario.fragmentation, &rows);
         }
-        self.bins.update(&self.markers, &rows, cells);
+        self.bins.update(&self.markers, &rows);
+        self.count_moved(&rows);
         self.rows = rows;
-        self.mark_moved(cells);
         // Moved out in descending row order (a swap-remove fills the row it empties from
         // the last one, which has been visited), then credited in the order of their ids,
         // so that neither the tallies' sums nor the drawn table depend on the rows' order
@@ -698,6 +685,7 @@ impl<'a> Engine<'a> {
         let mut batch = Markers::default();
         let mut by = Vec::with_capacity(drawn.len());
         for (k, d) in drawn {
+            self.count_drawn(k);
             self.markers.take_into(k, &mut batch);
             self.bins.swap_remove(k);
             by.push(d);
@@ -768,8 +756,7 @@ impl<'a> Engine<'a> {
             Some((&cadence, u)),
         );
         drop(fields);
-        let mut cells = Vec::new();
-        self.after_move(period, lagging, &mut cells, drawn);
+        self.after_move(period, lagging, drawn);
     }
 
     /// One rilling step on the free surface (`rilling::rill`).
@@ -789,7 +776,7 @@ impl<'a> Engine<'a> {
         };
         rilling::rill(&mut st);
         self.bins.sync(&self.markers);
-        self.all_moved = true;
+        self.count_all();
     }
 
     /// Free-surface height of every lattice column (i + n_x j) now, m (`rilling::surface`):
@@ -921,6 +908,7 @@ impl<'a> Engine<'a> {
             self.engulfed_mass[b] += m;
             let d0 = fragmentation::initial_size(bm, b, seed, id as u64, sized);
             self.markers.push(id as u64, p, m, b as u32, d0);
+            self.count_new(self.markers.len() - 1);
         }
     }
 
@@ -1324,6 +1312,17 @@ fn level_fields<'f>(
 fn reached(mk: &Markers, k: u32, grids: &[ImzGrid]) -> bool {
     let k = k as usize;
     !grids[mk.level[k] as usize].at(mk.x[k], mk.y[k]).is_empty()
+}
+
+/// Per block, its column i + n_x j in the block model's grid.
+fn block_columns(bm: &crate::model::BlockModel) -> Vec<u32> {
+    let mut col = vec![0; bm.len()];
+    for (c, &b) in bm.index.iter().enumerate() {
+        if b != crate::model::block_model::NO_BLOCK {
+            col[b as usize] = (c % (bm.dims[0] * bm.dims[1])) as u32;
+        }
+    }
+    col
 }
 
 /// Cell of the plan grids over the IMZs and the marker bins: the smaller block side, or the

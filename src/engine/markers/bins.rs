@@ -151,18 +151,17 @@ impl Bins {
         }
     }
 
-    /// Bins the rows appended to `mk` since the last call; returns their cells.
-    pub fn add_new(&mut self, mk: &Markers, cells: &mut Vec<usize>) {
+    /// Bins the rows appended to `mk` since the last call.
+    pub fn add_new(&mut self, mk: &Markers) {
         for row in self.at.len()..mk.len() {
             self.at.push((0, 0));
             let c = self.cell_of(mk.x[row], mk.y[row]);
             self.put(row, c);
-            cells.push(c);
         }
     }
 
-    /// Re-bins `rows` after they moved; pushes the new cells of those that changed cell.
-    pub fn update(&mut self, mk: &Markers, rows: &[u32], cells: &mut Vec<usize>) {
+    /// Re-bins `rows` after they moved.
+    pub fn update(&mut self, mk: &Markers, rows: &[u32]) {
         let moved: Vec<(u32, usize)> = rows
             .par_iter()
             .filter_map(|&r| {
@@ -173,18 +172,16 @@ impl Bins {
         for (r, c) in moved {
             self.unlink(r as usize);
             self.put(r as usize, c);
-            cells.push(c);
         }
     }
 
     /// Brings the bins in line with `mk` after any change to it (new rows binned, moved
     /// rows re-binned); rows may only have been appended or moved, not removed.
     pub fn sync(&mut self, mk: &Markers) {
-        let mut cells = Vec::new();
         let old = self.at.len().min(mk.len()) as u32;
-        self.add_new(mk, &mut cells);
+        self.add_new(mk);
         let all: Vec<u32> = (0..old).collect();
-        self.update(mk, &all, &mut cells);
+        self.update(mk, &all);
     }
 
     /// Sorts the rows (by cell and height, `Bins::sort`) once a tenth of them have left

@@ -102,7 +102,10 @@ pub use motion::{lateral, prepare, radial, MotionField, Step, WallReach};
 /// to each column (reorder, append, move a row) is written once and cannot miss one.
 macro_rules! columns {
     ($m:ident) => {
-        $m!(id, x, y, z, mass, block, frag, strain, work, rill, frag0, attrited, percolated, level)
+        $m!(
+            id, x, y, z, mass, block, frag, strain, work, rill, frag0, attrited, percolated, level,
+            at
+        )
     };
 }
 
@@ -139,6 +142,9 @@ pub struct Markers {
     pub percolated: Vec<f64>,
     /// Cadence level L: the marker steps once every 2^L updates (`engine::cadence`).
     pub level: Vec<u8>,
+    /// The block the marker lies in now (row in the block model; `u32::MAX` outside every
+    /// block), as the air gap's block masses last counted it (`engine::air_gap`).
+    pub at: Vec<u32>,
 }
 
 /// Drawn markers: the moving columns plus who drew them and when.
@@ -201,8 +207,7 @@ impl Markers {
         columns!(append_all);
     }
 
-    /// Appends a marker.
-    #[allow(clippy::too_many_arguments)]
+    /// Appends a marker, lying in its block of origin.
     pub fn push(&mut self, id: u64, p: [f64; 3], mass: f64, block: u32, frag: f64) {
         self.id.push(id);
         self.x.push(p[0]);
@@ -218,6 +223,7 @@ impl Markers {
         self.attrited.push(0.0);
         self.percolated.push(0.0);
         self.level.push(0);
+        self.at.push(block);
     }
 
     /// Moves row `k` out (swap-remove) and appends it to `to`.
