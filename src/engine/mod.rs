@@ -72,7 +72,7 @@ use cadence::Cadence;
 use crediting::Tally;
 use fragmentation::SizeDist;
 use height_of_draw::tributary;
-use imz::{DiskMotion, Ground, Imz, ImzGeom, ImzGrid, ImzParams, Mobilised};
+use imz::{DiskMotion, Ground, Imz, ImzGeom, ImzGrid, ImzParams, Listing, Mobilised};
 use markers::{Bins, DrawnMarkers, Lattice, Markers, MotionField, Rim, WallReach};
 pub use plan::RunPlan;
 pub use result::*;
@@ -155,9 +155,14 @@ pub struct Engine<'a> {
     bins: Bins,
     /// Scratch list of active marker rows.
     rows: Vec<u32>,
-    /// Scratch: a copy of every IMZ's geometry ([`copy_geoms`]), kept between steps so that
-    /// its allocations are reused.
+    /// A copy of every IMZ's geometry, as the step's parallel parts read it, and each
+    /// IMZ's listing in the plan grids ([`ImzGrid::listing`]): kept between updates and
+    /// made again only for the IMZs that drew since (`Engine::refresh_views`).
     geoms: Vec<ImzGeom>,
+    /// See `geoms`.
+    listings: Vec<Listing>,
+    /// Per IMZ, its `drew_at` when its copy and listing were made (`u64::MAX`: never).
+    viewed_at: Vec<u64>,
     /// Per block column (i + n_x j), whether its marker mass changed since the air gap was
     /// last recorded (`air_gap`).
     dirty_cols: Vec<bool>,
@@ -286,7 +291,9 @@ impl<'a> Engine<'a> {
                 grid_cell(bm, res.marker_spacing),
             ),
             rows: Vec::new(),
-            geoms: Vec::new(),
+            geoms: vec![ImzGeom::default(); n_dp],
+            listings: vec![Listing::new(); n_dp],
+            viewed_at: vec![u64::MAX; n_dp],
             dirty_cols: vec![true; bm.dims[0] * bm.dims[1]],
             all_moved: true,
             fixed_mass: vec![0; bm.len()],
@@ -380,6 +387,21 @@ impl<'a> Engine<'a> {
         });
         let cells = self.bins.cells_of(rects, 1, &[]);
         self.bins.rows_in(&cells, &mut self.rows);
+    }
+
+    /// Brings the copies of the IMZs' geometry (`geoms`) and their grid listings up to
+    /// date: an IMZ's disks change only when it draws, so only the IMZs that drew since
+    /// they were last copied are copied and listed again (in parallel).
+    fn refresh_views(&mut self, geoms: &mut [ImzGeom]) {
+        let (origin, extent, cell) = (self.extent.0, self.extent.1, self.grid_cell());
+        (&self.imzs, geoms, &mut self.listings, &mut self.viewed_at)
+            .into_par_iter()
+            .filter(|(m, _, _, at)| **at != m.drew_at)
+            .for_each(|(m, g, listing, at)| {
+                g.clone_from(&m.geom);
+                *listing = ImzGrid::listing(g, origin, extent, cell);
+                *at = m.drew_at;
+            });
     }
 
     /// Calls `f` with the motion field of every IMZ's last interval, as a marker update
@@ -486,10 +508,10 @@ impl<'a> Engine<'a> {
         let mut t = self.clock();
         let bm = &self.scene.blocks;
         let mut geoms = std::mem::take(&mut self.geoms);
-        copy_geoms(&self.imzs, &mut geoms);
+        self.refresh_views(&mut geoms);
         let all: Vec<usize> = (0..geoms.len()).collect();
         let cell = self.grid_cell();
-        let grid = ImzGrid::build(&geoms, &all, self.extent.0, self.extent.1, cell);
+        let grid = ImzGrid::assemble(&self.listings, &all, self.extent.0, self.extent.1, cell);
         let ground = Ground {
             blocks: bm,
             period,
@@ -531,13 +553,13 @@ impl<'a> Engine<'a> {
             c.engulfed += (self.markers.len() - before) as u64;
         }
         self.charge(Phase::Engulf, &mut t);
-        copy_geoms(&self.imzs, &mut geoms);
+        self.refresh_views(&mut geoms);
         // The levels whose windows end now, and the IMZs that drew in each window.
         let due = cadence.due(u);
         let active = self.active_per_level(u, due, drawing, true);
         // The active set: only markers binned where a drawing IMZ reaches can move, and of
         // those only the ones whose level is due.
-        let grids = self.level_grids(&geoms, &active);
+        let grids = self.level_grids(&active);
         self.charge(Phase::Grids, &mut t);
         let rows = if cadence.max_level > 0 {
             // A marker steps when its level is due and an IMZ that drew in its window
@@ -622,12 +644,13 @@ impl<'a> Engine<'a> {
             .collect()
     }
 
-    /// The grid over the IMZs active at each cadence level.
-    fn level_grids(&self, geoms: &[ImzGeom], active: &[Vec<usize>]) -> Vec<ImzGrid> {
-        let cell = self.grid_cell();
+    /// The grid over the IMZs active at each cadence level (from the listings that
+    /// `refresh_views` keeps).
+    fn level_grids(&self, active: &[Vec<usize>]) -> Vec<ImzGrid> {
+        let (origin, extent, cell) = (self.extent.0, self.extent.1, self.grid_cell());
         active
             .par_iter()
-            .map(|a| ImzGrid::build(geoms, a, self.extent.0, self.extent.1, cell))
+            .map(|a| ImzGrid::assemble(&self.listings, a, origin, extent, cell))
             .collect()
     }
 
@@ -725,14 +748,16 @@ impl<'a> Engine<'a> {
         let top = cadence.max_level;
         let active = self.active_per_level(u, top, &[], false);
         // Markers no IMZ of an open window reaches have nothing to catch up.
-        let geoms: Vec<ImzGeom> = self.imzs.iter().map(|m| m.geom.clone()).collect();
-        let grids = self.level_grids(&geoms, &active);
+        let mut geoms = std::mem::take(&mut self.geoms);
+        self.refresh_views(&mut geoms);
+        let grids = self.level_grids(&active);
         let mk = &self.markers;
         let lagging: Vec<u32> = (0..mk.len() as u32)
             .into_par_iter()
             .filter(|&k| mk.level[k as usize] > aligned && reached(mk, k, &grids))
             .collect();
         if lagging.is_empty() {
+            self.geoms = geoms;
             return;
         }
         let owned = self.window_motions(&active);
@@ -756,6 +781,7 @@ impl<'a> Engine<'a> {
             Some((&cadence, u)),
         );
         drop(fields);
+        self.geoms = geoms;
         self.after_move(period, lagging, drawn);
     }
 
@@ -1243,23 +1269,6 @@ impl<'a> Engine<'a> {
         self.charge(Phase::Finish, &mut clock);
         self.out.account = self.account.take().map(|a| *a);
         self.out
-    }
-}
-
-/// Copies every IMZ's geometry into `into`, reusing its allocations (the marker pass and
-/// the IMZs' neighbours read a snapshot, taken twice a step).
-fn copy_geoms(imzs: &[Imz], into: &mut Vec<ImzGeom>) {
-    into.resize_with(imzs.len(), ImzGeom::default);
-    for (g, m) in into.iter_mut().zip(imzs) {
-        let ImzGeom {
-            x,
-            y,
-            z0,
-            h,
-            radius,
-        } = &m.geom;
-        (g.x, g.y, g.z0, g.h) = (*x, *y, *z0, *h);
-        g.radius.clone_from(radius);
     }
 }
 

@@ -62,7 +62,8 @@ impl ImzGeom {
     }
 }
 
-/// A uniform 2-D grid over the footprint listing which IMZs may cover each cell.
+/// A uniform 2-D grid over the footprint listing which IMZs may cover each cell, each with
+/// the span of heights in which its disks can reach the cell.
 #[derive(Debug, Clone, Default)]
 pub struct ImzGrid {
     origin: [f64; 2],
@@ -70,7 +71,15 @@ pub struct ImzGrid {
     n: [usize; 2],
     start: Vec<u32>,
     ids: Vec<u32>,
+    /// Per listed IMZ, [z_lo, z_hi): below z_lo every disk of the IMZ is narrower than the
+    /// distance from its axis to the cell, and above z_hi it has no disk, so no point of
+    /// the cell outside that span lies in it ([`ImzGrid::holding`]).
+    span: Vec<[f64; 2]>,
 }
+
+/// The cells of a plan grid one IMZ is listed in, each with the span of heights
+/// [z_lo, z_hi) in which its disks can reach the cell ([`ImzGrid::listing`]).
+pub type Listing = Vec<(u32, [f64; 2])>;
 
 impl ImzGrid {
     /// Builds the grid for the IMZs `which` (indices into `geoms`): each is listed, in the
@@ -84,48 +93,103 @@ impl ImzGrid {
         extent: [f64; 2],
         cell: f64,
     ) -> ImzGrid {
-        let n = [
+        let mut listings = vec![Listing::new(); geoms.len()];
+        for &d in which {
+            listings[d] = ImzGrid::listing(&geoms[d], origin, extent, cell);
+        }
+        ImzGrid::assemble(&listings, which, origin, extent, cell)
+    }
+
+    /// Cells per axis of a grid over `extent` in cells of side `cell`.
+    fn cells(extent: [f64; 2], cell: f64) -> [usize; 2] {
+        [
             ((extent[0] / cell).ceil() as usize).max(1),
             ((extent[1] / cell).ceil() as usize).max(1),
-        ];
-        let mut counts = vec![0u32; n[0] * n[1] + 1];
-        // Per IMZ, the cells its widest disk meets, row by row: (IMZ, row, first and last
-        // column). A row's columns are those the circle's chord at the row's nearest edge
-        // spans (a hair wider than R, so that a point `ImzGeom::disk_at` takes inside on
-        // rounding is never in an unlisted cell).
+        ]
+    }
+
+    /// The cells of the grid (origin, extent, cell) that IMZ `g`'s widest disk meets, row
+    /// by row, with the span of heights in which its disks reach each. A row's cells are
+    /// those the circle's chord at the row's nearest edge spans, and a cell's span starts
+    /// at the lowest disk at or below which some disk is as wide as the cell is far from
+    /// the axis (radii a hair wider than R, so that a point `ImzGeom::disk_at` takes inside
+    /// on rounding is never in an unlisted cell or outside its span). An IMZ's listing
+    /// changes only when its disks do, so a run keeps it between updates and lists again
+    /// only the IMZs that drew.
+    pub fn listing(g: &ImzGeom, origin: [f64; 2], extent: [f64; 2], cell: f64) -> Listing {
+        let n = ImzGrid::cells(extent, cell);
         let index =
             |c: f64, o: f64, m: usize| (((c - o) / cell).floor().max(0.0) as usize).min(m - 1);
-        let mut rows: Vec<(u32, usize, usize, usize)> = Vec::new();
+        let inflate = |r: f64| r * (1.0 + 1e-9) + 1e-9 * cell;
+        // The widest disk at or below each level.
+        let mut m = 0.0f64;
+        let widest: Vec<f64> = g
+            .radius
+            .iter()
+            .map(|&r| {
+                m = m.max(r);
+                inflate(m)
+            })
+            .collect();
+        let r = inflate(g.max_radius());
+        // Heights a hair outside the disks' own (ImzGeom::height rounds).
+        let z_hi = g.z0 + (g.radius.len() as f64 + 1e-6) * g.h;
+        let mut out = Listing::new();
+        for j in index(g.y - r, origin[1], n[1])..=index(g.y + r, origin[1], n[1]) {
+            let (y0, y1) = (
+                origin[1] + j as f64 * cell,
+                origin[1] + (j + 1) as f64 * cell,
+            );
+            let dy = (y0 - g.y).max(g.y - y1).max(0.0);
+            let half = (r * r - dy * dy).max(0.0).sqrt();
+            let (i0, i1) = (
+                index(g.x - half, origin[0], n[0]),
+                index(g.x + half, origin[0], n[0]),
+            );
+            for i in i0..=i1 {
+                let (x0, x1) = (
+                    origin[0] + i as f64 * cell,
+                    origin[0] + (i + 1) as f64 * cell,
+                );
+                let dx = (x0 - g.x).max(g.x - x1).max(0.0);
+                // Squared distances: rounding may only list a disk lower, never higher.
+                let near2 = dx * dx + dy * dy;
+                let first = widest.partition_point(|&w| w * w < near2);
+                let z_lo = g.z0 + (first as f64 - 1e-6) * g.h;
+                out.push(((i + n[0] * j) as u32, [z_lo, z_hi]));
+            }
+        }
+        out
+    }
+
+    /// The grid of the IMZs `which`, in that order in every cell, from their listings
+    /// ([`ImzGrid::listing`] on the same grid; `listings` indexed by IMZ).
+    pub fn assemble(
+        listings: &[Listing],
+        which: &[usize],
+        origin: [f64; 2],
+        extent: [f64; 2],
+        cell: f64,
+    ) -> ImzGrid {
+        let n = ImzGrid::cells(extent, cell);
+        let mut counts = vec![0u32; n[0] * n[1] + 1];
         for &d in which {
-            let g = &geoms[d];
-            let r = g.max_radius() * (1.0 + 1e-9) + 1e-9 * cell;
-            for j in index(g.y - r, origin[1], n[1])..=index(g.y + r, origin[1], n[1]) {
-                let (y0, y1) = (
-                    origin[1] + j as f64 * cell,
-                    origin[1] + (j + 1) as f64 * cell,
-                );
-                let dy = (y0 - g.y).max(g.y - y1).max(0.0);
-                let half = (r * r - dy * dy).max(0.0).sqrt();
-                let (i0, i1) = (
-                    index(g.x - half, origin[0], n[0]),
-                    index(g.x + half, origin[0], n[0]),
-                );
-                rows.push((d as u32, j, i0, i1));
-                for i in i0..=i1 {
-                    counts[i + n[0] * j + 1] += 1;
-                }
+            for &(c, _) in &listings[d] {
+                counts[c as usize + 1] += 1;
             }
         }
         for k in 1..counts.len() {
             counts[k] += counts[k - 1];
         }
         let mut fill = counts.clone();
-        let mut ids = vec![0u32; *counts.last().unwrap() as usize];
-        for &(d, j, i0, i1) in &rows {
-            for i in i0..=i1 {
-                let c = i + n[0] * j;
-                ids[fill[c] as usize] = d;
-                fill[c] += 1;
+        let total = *counts.last().unwrap() as usize;
+        let (mut ids, mut span) = (vec![0u32; total], vec![[0.0; 2]; total]);
+        for &d in which {
+            for &(c, s) in &listings[d] {
+                let at = &mut fill[c as usize];
+                ids[*at as usize] = d as u32;
+                span[*at as usize] = s;
+                *at += 1;
             }
         }
         ImzGrid {
@@ -134,23 +198,46 @@ impl ImzGrid {
             n,
             start: counts,
             ids,
+            span,
         }
+    }
+
+    /// The IMZs listed at (x, y) whose disks can reach height z there, in the order of
+    /// [`ImzGrid::at`]: the others cannot hold a point (x, y, z), nor its mirror across a
+    /// wall when (x, y) is the point just inside the wall (the mirror lies farther from
+    /// every axis inside).
+    #[inline]
+    pub fn holding(&self, x: f64, y: f64, z: f64) -> impl Iterator<Item = u32> + '_ {
+        let c = self.cell_at(x, y);
+        let (a, b) = c.map_or((0, 0), |c| {
+            (self.start[c] as usize, self.start[c + 1] as usize)
+        });
+        self.ids[a..b]
+            .iter()
+            .zip(&self.span[a..b])
+            .filter(move |(_, s)| z >= s[0] && z < s[1])
+            .map(|(&d, _)| d)
     }
 
     /// IMZ ids whose footprint may cover (x, y).
     #[inline]
     pub fn at(&self, x: f64, y: f64) -> &[u32] {
+        match self.cell_at(x, y) {
+            Some(c) => &self.ids[self.start[c] as usize..self.start[c + 1] as usize],
+            None => &[],
+        }
+    }
+
+    /// The cell that holds (x, y), if the grid covers it.
+    #[inline]
+    fn cell_at(&self, x: f64, y: f64) -> Option<usize> {
         let i = (x - self.origin[0]) / self.cell;
         let j = (y - self.origin[1]) / self.cell;
         if !(i >= 0.0 && j >= 0.0) {
-            return &[];
+            return None;
         }
         let (i, j) = (i as usize, j as usize);
-        if i >= self.n[0] || j >= self.n[1] {
-            return &[];
-        }
-        let c = i + self.n[0] * j;
-        &self.ids[self.start[c] as usize..self.start[c + 1] as usize]
+        (i < self.n[0] && j < self.n[1]).then_some(i + self.n[0] * j)
     }
 }
 
@@ -183,6 +270,7 @@ mod tests {
         // square's cells are listed at 5 m and 0.90 at 15 m.
         for (cell, share) in [(5.0, 0.86), (15.0, 0.92)] {
             let grid = ImzGrid::build(&geoms, &which, [0.0, 0.0], [200.0, 200.0], cell);
+            let (mut tested, mut all) = (0, 0);
             for k in 0..40_000 {
                 let p = if k % 4 == 0 {
                     // On the rim of a disk (to rounding).
@@ -221,7 +309,20 @@ mod tests {
                 for w in holding.windows(2) {
                     assert!(pos(w[0]) < pos(w[1]), "cell {cell}: order at {p:?}");
                 }
+                // The listing by height keeps every IMZ that holds the point, in order.
+                let by_height: Vec<usize> =
+                    grid.holding(p[0], p[1], p[2]).map(|d| d as usize).collect();
+                let kept: Vec<usize> = by_height
+                    .iter()
+                    .copied()
+                    .filter(|d| holding.contains(d))
+                    .collect();
+                assert_eq!(kept, holding, "cell {cell}: by height at {p:?}");
+                tested += by_height.len();
+                all += listed.len();
             }
+            eprintln!("cell {cell}: {tested} of {all} listed IMZs reach the points' heights");
+            assert!(tested < all);
             // The listing against the bounding squares'.
             let listed: usize = which
                 .iter()

@@ -213,9 +213,7 @@ impl Ground<'_> {
                 || last.is_some_and(holds)
                 || match self
                     .grid
-                    .at(p[0], p[1])
-                    .iter()
-                    .copied()
+                    .holding(p[0], p[1], p[2])
                     .find(|&e| Some(e) != last && holds(e))
                 {
                     Some(e) => {

@@ -125,7 +125,7 @@ use std::f64::consts::PI;
 use super::cadence::Window;
 
 pub use disk_motion::{DiskMotion, PerDisk, Profile};
-pub use geom::{ImzGeom, ImzGrid};
+pub use geom::{ImzGeom, ImzGrid, Listing};
 pub use ground::{Ground, Stagnant};
 
 /// Number of perimeter points sampled for stagnant properties (summary §3.3).

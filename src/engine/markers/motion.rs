@@ -425,14 +425,14 @@ impl MotionField<'_> {
                     st.drawn_by = d;
                 }
             };
-        for &d in self.grid.at(p[0], p[1]) {
+        for d in self.grid.holding(p[0], p[1], p[2]) {
             if let Some(h) = self.geoms[d as usize].disk_at(p) {
                 visit(d, 1.0, 1.0, h);
             }
         }
         // The IMZs' images across the model's walls ([`MotionField::images`]).
         self.images(p, |at, q, sx, sy| {
-            for &d in self.grid.at(at[0], at[1]) {
+            for d in self.grid.holding(at[0], at[1], q[2]) {
                 if let Some(h) = self.geoms[d as usize].disk_at(q) {
                     visit(d, sx, sy, h);
                 }
@@ -611,7 +611,7 @@ impl MotionField<'_> {
     pub fn candidates(&self, p: [f64; 3]) -> (u64, u64) {
         let (mut tests, mut hits) = (0u64, 0u64);
         let mut count = |at: [f64; 2], q: [f64; 3]| {
-            for &d in self.grid.at(at[0], at[1]) {
+            for d in self.grid.holding(at[0], at[1], q[2]) {
                 tests += 1;
                 hits += u64::from(self.geoms[d as usize].disk_at(q).is_some());
             }
