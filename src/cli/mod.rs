@@ -475,11 +475,18 @@ fn run(a: RunArgs) -> Result<ExitCode> {
     let account = out.account.clone();
     let command = std::env::args().collect::<Vec<_>>().join(" ");
     let moments = scene.moments(&sc.outputs.section_periods);
+    let mut lap = Instant::now();
+    let mut outputs: Vec<(&str, f64)> = Vec::new();
+    let mut took = |what: &'static str, outputs: &mut Vec<(&str, f64)>| {
+        outputs.push((what, lap.elapsed().as_secs_f64()));
+        lap = Instant::now();
+    };
     let charts = if sc.outputs.charts {
         output::figures::write_run_charts(dir, scene, &out, None, &moments)?
     } else {
         Vec::new()
     };
+    took("charts", &mut outputs);
     let massflow = if sc.outputs.massflow {
         output::massflow::write_reports(dir, scene, &out)?
     } else {
@@ -495,6 +502,7 @@ fn run(a: RunArgs) -> Result<ExitCode> {
     } else {
         Vec::new()
     };
+    took("MassFlow reports and VTK", &mut outputs);
     let manifest = Manifest::new(
         command,
         &sc,
@@ -527,7 +535,9 @@ fn run(a: RunArgs) -> Result<ExitCode> {
         None
     };
     let hive = output::dataset::HiveLayout::new(&sc, &name, scene.periods.len());
+    took("report", &mut outputs);
     let files = output::write_run_with(dir, scene, out, &manifest, hive.as_ref())?;
+    took("tables", &mut outputs);
     // The outputs are complete: the checkpoint has served.
     if checkpoint.exists() {
         std::fs::remove_file(&checkpoint).with_context(|| checkpoint.display().to_string())?;
@@ -550,11 +560,18 @@ fn run(a: RunArgs) -> Result<ExitCode> {
         println!("report: {}", page.display());
     }
     if let Some(account) = account {
-        let outputs = started.elapsed().saturating_sub(engine_wall).as_secs_f64();
+        let total = started.elapsed().as_secs_f64();
         eprint!("{}", account.report());
+        let written: f64 = outputs.iter().map(|o| o.1).sum();
+        let each: Vec<String> = outputs
+            .iter()
+            .map(|(w, t)| format!("{w} {t:.2} s"))
+            .collect();
         eprintln!(
-            "engine wall {:.2} s; set-up and outputs (loading, charts, report, tables) {outputs:.2} s",
-            engine_wall.as_secs_f64()
+            "run wall {total:.2} s: engine {:.2} s, outputs {written:.2} s ({}), set-up {:.2} s",
+            engine_wall.as_secs_f64(),
+            each.join(", "),
+            total - engine_wall.as_secs_f64() - written,
         );
     }
     Ok(ExitCode::SUCCESS)

@@ -938,7 +938,7 @@ impl<'a> Engine<'a> {
         }
     }
 
-    /// Recomputes the mobilised-property sums of the disks of the IMZs `which` (those
+    /// Recomputes the mobilised properties (means) of the disks of the IMZs `which` (those
     /// drawing this period) from the markers inside them, in parallel over the IMZs. Each
     /// IMZ visits only the markers binned in the cells its bounding box covers, and sums
     /// them in the order of their ids, whatever the rows' order; the other IMZs' sums
@@ -984,6 +984,10 @@ impl<'a> Engine<'a> {
                     m.rho1 += bm.density[b] * (1.0 - bm.n1[b]);
                     m.rho_s += bm.density[b];
                     m.count += 1;
+                }
+                for m in imz.mobilised.iter_mut().filter(|m| m.count > 0) {
+                    let k = m.count as f64;
+                    (m.d, m.phi, m.rho1, m.rho_s) = (m.d / k, m.phi / k, m.rho1 / k, m.rho_s / k);
                 }
             });
     }

@@ -212,16 +212,18 @@ pub fn grown_radius(r_i: f64, r: f64, v: f64, h: f64, eps: f64, flow_frac: f64) 
     (r_i * r_i + r * v / (PI * h * eps * flow_frac)).sqrt()
 }
 
-/// Mobilised-property sums of the markers inside one disk.
+/// Mobilised properties of one disk: the means over the markers inside it (summed in the
+/// order of their ids, then divided once, `Engine::refresh_mobilised`; the growth reads
+/// them every cycle).
 #[derive(Debug, Clone, Copy, Default, serde::Serialize, serde::Deserialize)]
 pub struct Mobilised {
-    /// Σ d̄ of markers.
+    /// Mean d̄ of the markers, m.
     pub d: f64,
-    /// Σ φ of markers.
+    /// Mean φ, degrees.
     pub phi: f64,
-    /// Σ ρ_s (1 − n1).
+    /// Mean ρ_s (1 − n1), t/m³.
     pub rho1: f64,
-    /// Σ ρ_s.
+    /// Mean ρ_s, t/m³.
     pub rho_s: f64,
     /// Number of markers.
     pub count: u32,
@@ -351,8 +353,7 @@ impl Imz {
     pub fn props(&self, i: usize) -> (f64, f64, f64) {
         let m = &self.mobilised[i];
         if m.count > 0 {
-            let k = m.count as f64;
-            (m.d / k, m.phi / k, m.rho1 / k)
+            (m.d, m.phi, m.rho1)
         } else {
             let s = &self.stagnant[i];
             (s.d, s.phi, s.rho1)
