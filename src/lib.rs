@@ -8,7 +8,7 @@
 //! [`output`] (Parquet writers, manifest, charts) → `analysis` (reconcile, calibrate) →
 //! [`cli`]. No module reaches back up (the integration test `layering` reads every `crate::`
 //! path in `src/` and fails on one, and on a circle among a layer's modules). [`docs`]
-//! holds the notes on the method, its validation and its performance, and
+//! holds the notes on the method, its validation, its resolution and its performance, and
 //! [`docs::references`] says what the "summary §" and "DESIGN §" of the doc comments are.
 #![warn(missing_docs)]
 // `!(x > 0.0)` is how this crate says "not a positive number, NaN included": a NaN input

@@ -93,7 +93,7 @@
 //! had the fit been made on a twin lattice, the difference of two equally noisy fits, so
 //! √2 times one fit's part; `se_lattice` is the RMS of the three steps over √2.
 //!
-//! **Noise.** The model's own noise is the markers' sampling noise (`docs::performance`,
+//! **Noise.** The model's own noise is the markers' sampling noise (`docs::resolution`,
 //! "Sampling noise"). The run at θ̂ is made once more on each twin lattice, moved in plan by
 //! k × [`TWIN_OFFSET`](crate::model::scenario::TWIN_OFFSET), k = 1, 2, 3: each an equally
 //! good sample of the same ground, √2 times the noise away from the first, so the noise is
@@ -105,7 +105,7 @@
 //! one of them apart), and the records' 8% high when they came from a finer run. A
 //! drawpoint's errors are correlated over its periods, so one pair is a rough sample of
 //! the noise: on the whole demo the pairs of five lattice offsets lie 1.3–1.9% apart over
-//! √2 (`docs::performance`, "Sampling noise").
+//! √2 (`docs::resolution`, "Sampling noise").
 //!
 //! **Globals.** Near its minimum each profile is a parabola, S(θ) ≈ S_min + a (θ − θ̂)²,
 //! fitted by least squares to the evaluated points within 30% of the best one. As in

@@ -26,7 +26,7 @@
 //! # The reference and its own error
 //! REBOP has no closed form to compare against, so the reference is a fine run, and the
 //! errors are distances to it. Its error is the markers' sampling noise and its bias
-//! (`docs::performance`, "Sampling noise"); for the noise the reference is run twice, on
+//! (`docs::resolution`, "Sampling noise"); for the noise the reference is run twice, on
 //! the lattice and on its twin, moved in plan by
 //! [`TWIN_OFFSET`](crate::model::scenario::TWIN_OFFSET) (`resolution.lattice_offset`): two
 //! equally good samples of the same ground. The errors are distances to their mean (per
@@ -34,7 +34,7 @@
 //! the two is the noise ν of that mean (two independent noises σ lie √2 σ apart; their
 //! mean is σ/√2 from the limit). One pair is a rough sample of the noise: at the demo's
 //! default resolution, pairs of lattice offsets lie 1.3–1.9% apart over √2
-//! (`docs::performance`, "Sampling noise").
+//! (`docs::resolution`, "Sampling noise").
 //!
 //! What noise does not explain is bias. A check at twice the reference's h and spacing
 //! (same increment, every marker every update), also run twice the same way, has its mean

@@ -383,7 +383,7 @@ fn validate(a: InputArgs) -> Result<ExitCode> {
 /// Runs `f` on a worker thread of rayon's global pool. The engine's parallel passes then
 /// start from a worker, which takes its share of each pass, instead of from a thread that
 /// waits while the pool's workers are woken for every pass: the mine scene's run takes
-/// 0.97 times the wall time, with byte-identical outputs (`docs::performance`).
+/// 0.97 times the wall time, with byte-identical outputs (`docs::resolution`, "Mine scale").
 fn on_pool<R: Send>(f: impl FnOnce() -> R + Send) -> R {
     rayon::join(f, || ()).0
 }

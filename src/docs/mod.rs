@@ -1,7 +1,7 @@
-//! Notes on the method, its validation and its performance, in our own words: the pages
-//! the README points to. They hold no code. Figures are under `tests/figures/` in the
-//! repository (the links are relative to this directory, so they resolve where the Markdown
-//! files are read in the repository; rustdoc shows the text).
+//! Notes on the method, its validation, its resolution and its performance, in our own
+//! words: the pages the README points to. They hold no code. Figures are under
+//! `tests/figures/` in the repository (the links are relative to this directory, so they
+//! resolve where the Markdown files are read in the repository; rustdoc shows the text).
 
 #[doc = include_str!("physics.md")]
 pub mod physics {}
@@ -11,6 +11,9 @@ pub mod validation {}
 
 #[doc = include_str!("performance.md")]
 pub mod performance {}
+
+#[doc = include_str!("resolution.md")]
+pub mod resolution {}
 
 #[doc = include_str!("references.md")]
 pub mod references {}

@@ -12,7 +12,7 @@
 //!   MassFlow's 0.5 × block, sets neither. Where h is 0.5 × block (the demo: 7.6 m blocks,
 //!   h 3.8 m) this is MassFlow's pair, 0.5 h; a mine-scale model of 15.2 m blocks with 4 m
 //!   openings gets h 4 m and 3.4 m markers (drawpoint spacing 13.6 m), not 2 m ones with
-//!   6.7× the markers for half the daily grade error (`docs::performance`, "Mine scale").
+//!   6.7× the markers for half the daily grade error (`docs::resolution`, "Mine scale").
 //! - draw increment = the tonnes of the smallest opening disk (π (w/2)² h) at dilated
 //!   density, times the spacing over 0.5 h when the spacing is coarser than that (as for
 //!   an accuracy target, below: a marker moves about as many spacings per update as with
@@ -21,10 +21,10 @@
 //!   move by the void passed "since the last marker update" (summary §3.3). The axial
 //!   marker of a cone profile moves up to 3 disks per update at one disk; a third of it
 //!   keeps it within one disk at three times the cost (see the speed–accuracy sweep in
-//!   `docs::performance`).
+//!   `docs::resolution`).
 //!
 //! # From an accuracy target
-//! The speed–accuracy sweep (`analysis::sweep`, `docs::performance`, "Automatic
+//! The speed–accuracy sweep (`analysis::sweep`, `docs::resolution`, "Automatic
 //! resolution") measured the whole-demo grade RMSE per drawpoint-period against the
 //! converged reference at marker spacings from 0.55 to 1 times the default, at the default
 //! h and at h/2. At each h it is a floor plus the sampling noise of discrete markers: a
@@ -71,14 +71,14 @@ use crate::model::{Scenario, Scene};
 /// spacing × 1 to 0.55 (seven at h, 1.74–1.20%, fit within 0.035 points rms; twelve at
 /// h/2, four of them at the rule's choice for 1%, 1.19–0.63%, within 0.063), against the
 /// mean of the reference's two runs
-/// (`docs::performance`, "Automatic resolution").
+/// (`docs::resolution`, "Automatic resolution").
 pub const FLOOR: [f64; 2] = [0.0104, 0.0043];
 
 /// Sampling-noise coefficient N_h of the same fits: the noise at the default spacing.
 pub const NOISE: [f64; 2] = [0.0140, 0.0118];
 
 /// Cost of a run against the scene default as (h0/h)^a × m^(−b), from the whole-demo
-/// sweep's wall times (`docs::performance`, "Speed and accuracy"): h/2 took 1.79 times the
+/// sweep's wall times (`docs::resolution`, "Speed and accuracy"): h/2 took 1.79 times the
 /// default's time at the default spacing (a = 0.84); spacing × 2 took 0.26 times it, and
 /// spacing × 0.84 at h/2 1.59 times h/2 at × 1 (b = 1.9 and 2.6; 2 between them).
 pub const H_COST_EXPONENT: f64 = 0.84;
@@ -102,7 +102,8 @@ pub const FRAG_FRACTION: f64 = 1.0;
 /// Default `resolution.max_marker_move` as a fraction of the marker spacing: a marker that
 /// is slow enough to move less than this per update steps less often (`engine::cadence`).
 /// One spacing against half a spacing: 0.103% against 0.090% grade RMSE on the demo sweep,
-/// and no measurable change over the mine scene's first 400 days (`docs::performance`, "Mine scale").
+/// and no measurable change over the mine scene's first 400 days (`docs::performance`,
+/// "Multi-rate cadence").
 pub const MAX_MOVE_FRACTION: f64 = 1.0;
 
 /// Default `resolution.max_marker_move` as a fraction of the disk thickness h, where that is

@@ -55,7 +55,7 @@ pub struct Inputs {
     pub trace: Option<PathBuf>,
 }
 
-/// Resolution knobs. Each has a measured cost and error (`docs::performance`). The defaults are
+/// Resolution knobs. Each has a measured cost and error (`docs::resolution`). The defaults are
 /// stated once, in `engine::resolution` (the rule and why), which resolves them.
 #[derive(Debug, Clone, Serialize, Deserialize, Default, PartialEq)]
 #[serde(deny_unknown_fields, default)]
@@ -79,7 +79,7 @@ pub struct Resolution {
     /// Plan offset (x, y) of the marker lattice, as fractions of the spacing, each in
     /// [−0.5, 0.5). Another offset samples the same ground with other sites: it is as good
     /// a run, and the spread of the results between offsets is the markers' sampling noise
-    /// (`docs::performance`, "Sampling noise"). Default: none.
+    /// (`docs::resolution`, "Sampling noise"). Default: none.
     pub lattice_offset: [f64; 2],
 }
 

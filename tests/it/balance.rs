@@ -630,7 +630,7 @@ fn markers_weigh_the_ground_they_stand_for_whatever_the_block_boundaries() {
 /// never short draws its schedule in markers to 3% (22 of 32: the southeast corner's are
 /// short by design, `model::demo`). The issue asks 2%: 17 of the 22 are within it, and at
 /// least 16 must be (a drawpoint's ratio moves by 0.44%, median standard deviation, with
-/// the lattice's phase alone, `docs::performance`, "Sampling noise", so one near the line
+/// the lattice's phase alone, `docs::resolution`, "Sampling noise", so one near the line
 /// may cross it). Two fixes made this: a marker under several IMZs takes one IMZ's
 /// transfer (averaged transfers stranded markers between the IMZs' lower disks, median
 /// 0.988), and a cadence window's step is split at the bases it crosses (in one piece the

@@ -93,7 +93,7 @@ fn sweep_writes_table_and_chart_and_errors_shrink_toward_the_reference() {
 
 /// The automatic resolution (`engine::resolution`) for a 1% grade-RMSE target lands within
 /// the target against the reference on the demo's first 3 periods (a short check; the
-/// whole-draw figures are `docs::performance`'s), and over these targets a tighter one
+/// whole-draw figures are `docs::resolution`'s), and over these targets a tighter one
 /// gives a resolution no coarser in any knob (the rule's own monotonicity is
 /// `engine::resolution`'s unit test).
 #[test]

@@ -104,7 +104,7 @@
 //! --out DIR --summary-only` run after every task writes the summary from the complete
 //! variants and runs none (exit 1, naming them, when some are not complete).
 //! `src/python/caveflow_ray/` is such a driver: one Ray task per variant, with retries
-//! (its README; figures in `docs::performance`, "Studies").
+//! (its README; figures in `docs::resolution`, "Studies").
 //!
 //! # Bad study files
 //!

@@ -39,7 +39,7 @@ impl Lattice {
     /// grid. The first and last cells along x and y stretch or shrink (to between s/2 and
     /// 3s/2) so that the cells still tile the grid. Another offset samples the same ground
     /// with other sites: the spread of the results between offsets is the markers'
-    /// sampling noise (`docs::performance`, "Sampling noise"). The first and last sites
+    /// sampling noise (`docs::resolution`, "Sampling noise"). The first and last sites
     /// sit at their cells' middles ([`centre`](Self::centre)).
     pub fn with_offset(mut self, bm: &BlockModel, offset: [f64; 2]) -> Lattice {
         let max = bm.max_corner();
