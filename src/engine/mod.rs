@@ -829,7 +829,7 @@ impl<'a> Engine<'a> {
     /// its grade, lithology and waste share are the cell's mix, not its centre block's:
     /// taking the centre block's moved every block face's grade by up to s/2 and made the
     /// demo's whole-run grade error jump between 1.1 and 2.0% among spacings 1.05–1.52 m
-    /// (`docs::performance`, "Automatic resolution"). Size and fines stay the centre
+    /// (`docs::resolution`, "Automatic resolution"). Size and fines stay the centre
     /// block's, as does the marker's mass (the lattice's, `Lattice::unit_masses`).
     fn composition(&self, id: usize, b: usize) -> Vec<(usize, f64)> {
         let bm = &self.scene.blocks;

@@ -201,7 +201,7 @@ impl Bins {
     /// hundred periods, and every visit then fetches its IMZs' geometry and motion anew;
     /// sorted, consecutive rows share them, and they stay in cache. Row order changes no
     /// result: every sum over markers is taken in the order of their ids or exactly
-    /// (`docs::performance`, "What changed").
+    /// (`tests::the_rows_order_changes_no_result` in `engine`).
     fn sort(&mut self, mk: &mut Markers) {
         let mut key: Vec<((usize, i64), u32)> = (0..mk.len())
             .into_par_iter()
