@@ -89,6 +89,41 @@ impl Cadence {
     }
 }
 
+/// The rows whose level is at most `top` and for which `keep(row)` holds, ascending (in
+/// parallel). Most rows are of higher levels than an update's due ones, so the levels are
+/// read eight at a time and a word holding none at most `top` is passed over whole.
+pub fn rows_due(level: &[u8], top: u8, keep: impl Fn(usize) -> bool + Sync) -> Vec<u32> {
+    use rayon::prelude::*;
+    const CHUNK: usize = 1 << 14;
+    let below = u64::from(top) + 1;
+    let ones = u64::from_le_bytes([1; 8]);
+    let highs = u64::from_le_bytes([0x80; 8]);
+    let chunks: Vec<Vec<u32>> = level
+        .par_chunks(CHUNK)
+        .enumerate()
+        .map(|(c, chunk)| {
+            let mut out = Vec::new();
+            let mut take = |k: usize| {
+                if chunk[k] <= top && keep(c * CHUNK + k) {
+                    out.push((c * CHUNK + k) as u32);
+                }
+            };
+            let words = chunk.chunks_exact(8);
+            let tail = words.remainder().len();
+            for (w, word) in words.enumerate() {
+                let x = u64::from_le_bytes(word.try_into().expect("eight bytes"));
+                // Some byte of x is below `below` (≤ 7, so the borrow trick holds).
+                if x.wrapping_sub(ones * below) & !x & highs != 0 {
+                    (8 * w..8 * w + 8).for_each(&mut take);
+                }
+            }
+            (chunk.len() - tail..chunk.len()).for_each(take);
+            out
+        })
+        .collect();
+    chunks.concat()
+}
+
 /// Adds one update's void per disk (in and out, `dv`) to each level's windows, opening
 /// windows for new disks (they began at radius 0).
 pub fn accumulate(windows: &mut [Vec<Window>], dv: impl Iterator<Item = (f64, f64)> + Clone) {
@@ -115,6 +150,31 @@ pub fn restart(window: &mut Vec<Window>, radius: &[f64]) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The word-at-a-time scan finds exactly the rows a plain filter finds, in order.
+    #[test]
+    fn rows_due_are_the_filters_rows() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        for n in [0, 5, 8, 13, 40_000, 70_001] {
+            let level: Vec<u8> = (0..n)
+                .map(|_| {
+                    if rng.random_bool(0.9) {
+                        6
+                    } else {
+                        rng.random_range(0..=6)
+                    }
+                })
+                .collect();
+            for top in 0..=MAX_LEVEL {
+                let keep = |k: usize| k % 3 != 1;
+                let want: Vec<u32> = (0..n as u32)
+                    .filter(|&k| level[k as usize] <= top && keep(k as usize))
+                    .collect();
+                assert_eq!(rows_due(&level, top, keep), want, "n {n}, top {top}");
+            }
+        }
+    }
 
     #[test]
     fn due_levels_follow_the_trailing_zeros() {

@@ -570,10 +570,7 @@ impl<'a> Engine<'a> {
             // A row whose level is not due costs one byte read; ground no IMZ has reached
             // has no markers yet (`Engine::engulf`), so it still costs nothing.
             let mk = &self.markers;
-            (0..mk.len() as u32)
-                .into_par_iter()
-                .filter(|&k| mk.level[k as usize] <= due && reached(mk, k, &grids))
-                .collect()
+            cadence::rows_due(&mk.level, due, |k| reached(mk, k as u32, &grids))
         } else {
             self.rows_near(&geoms, &active[due as usize]);
             std::mem::take(&mut self.rows)
