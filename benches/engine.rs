@@ -8,15 +8,25 @@
 //!   marker-updates per second read straight off the report;
 //! - `demo_small_6_periods`: the first 6 monthly periods of the small demo panel, end to end
 //!   (32 drawpoints, 0.4 Mt drawn);
-//! - `mine_200_days`: the first 200 daily periods of the mine-scale scene (416 drawpoints),
-//!   with the multi-rate cadence (the default) and with every marker stepping every update
-//!   (`max_marker_move = 0`), so the cadence's gain reads as a ratio.
+//! - `mine_mid_run`: 60 daily periods (1500 to 1559) of the mine-scale scene (416
+//!   drawpoints) from the state at day 1500, where the caves are tall and most markers are
+//!   moving: the expensive phase of the run, which the first days do not show. The state
+//!   is made once (15–20 s of draw) and kept as a checkpoint under the target directory
+//!   (`bench-cache/`), made again when absent or when the engine refuses it (another
+//!   checkpoint format or another scene); each iteration resumes from it outside the
+//!   timing. Once per bench run the engine's account of those 60 days
+//!   (`engine::account`, time per phase and work counters) is printed to stderr.
+//!
+//! `cargo bench --bench engine -- mine_mid_run` runs the last alone.
+
+use std::path::{Path, PathBuf};
+use std::time::Duration;
 
 use caveflow::engine::markers::move_rows;
 use caveflow::engine::Engine;
 use caveflow::model::demo::{self, DemoScale};
 use caveflow::model::synthetic::UniformBox;
-use caveflow::model::Scenario;
+use caveflow::model::{Scenario, Scene};
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion, Throughput};
 
 fn isolated_draw(c: &mut Criterion) {
@@ -87,20 +97,131 @@ fn demo_run(c: &mut Criterion) {
     g.finish();
 }
 
-fn mine_run(c: &mut Criterion) {
-    let mut scene = demo::henderson(DemoScale::Mine, 42);
-    scene.keep_periods(200);
-    let mut g = c.benchmark_group("mine_200_days");
-    g.sample_size(10);
-    for (name, max_move) in [("cadence", None), ("every_update", Some(0.0))] {
-        let mut sc = demo::scenario(DemoScale::Mine, 42);
-        sc.resolution.max_marker_move = max_move;
-        g.bench_function(name, |bench| {
-            bench.iter(|| Engine::new(&scene, &sc).unwrap().run(&mut |_, _| {}))
-        });
+/// Period index of the mid-run state `mine_mid_run` starts from, and how many periods it
+/// draws from there.
+const MID_RUN: usize = 1500;
+const MID_RUN_DAYS: usize = 60;
+
+/// The checkpoint tag of the mine scene: a hash of the scenario and of the scene's
+/// defining columns, so a cached state made from another scene is refused.
+fn scene_tag(scene: &Scene, sc: &Scenario) -> String {
+    let mut text = serde_json::to_string(sc).expect("scenario as JSON");
+    let bm = &scene.blocks;
+    text.push_str(&format!(
+        "{:?} {:?} {:?} {} {}",
+        bm.dims,
+        bm.origin,
+        bm.size,
+        scene.drawpoints.len(),
+        scene.periods.len()
+    ));
+    let mut bytes = text.into_bytes();
+    for col in [
+        &bm.density,
+        &bm.n0,
+        &bm.n1,
+        &bm.frag,
+        &scene.schedule.tonnes,
+    ]
+    .into_iter()
+    .chain(&bm.grades)
+    {
+        bytes.extend(col.iter().flat_map(|x| x.to_le_bytes()));
     }
+    bytes.extend(bm.cave_period.iter().flat_map(|x| x.to_le_bytes()));
+    caveflow::io::sha256_hex(&bytes)
+}
+
+/// Where the cached mid-run state lives: `<target>/bench-cache/`, the target directory
+/// being `CARGO_TARGET_DIR` or the one this bench was built into (`<target>/release/deps/`).
+fn cache_dir() -> PathBuf {
+    if let Some(dir) = std::env::var_os("CARGO_TARGET_DIR") {
+        return PathBuf::from(dir).join("bench-cache");
+    }
+    let exe = std::env::current_exe().expect("the bench's own path");
+    exe.ancestors()
+        .nth(3)
+        .map_or_else(|| PathBuf::from("target"), Path::to_path_buf)
+        .join("bench-cache")
+}
+
+/// The mine scene's state at day [`MID_RUN`] as checkpoint bytes: read from the cache when
+/// the engine accepts it, else drawn from day 0 and cached.
+fn mid_run_state(scene: &Scene, sc: &Scenario, tag: &str) -> Vec<u8> {
+    let dir = cache_dir();
+    let path = dir.join(format!("mine-{MID_RUN}-{}.bin", &tag[..12]));
+    if let Ok(bytes) = std::fs::read(&path) {
+        match Engine::resume(scene, sc, &bytes, tag) {
+            Ok((_, next)) if next == MID_RUN => return bytes,
+            Ok(_) => eprintln!("{}: another day; made again", path.display()),
+            Err(e) => eprintln!("{}: {e}; made again", path.display()),
+        }
+    }
+    eprintln!(
+        "mine_mid_run: drawing days 0..{MID_RUN} once (cached in {})",
+        path.display()
+    );
+    let mut e = Engine::new(scene, sc).expect("mine scene");
+    for p in 0..MID_RUN {
+        e.run_period(p);
+    }
+    std::fs::create_dir_all(&dir).expect("bench cache directory");
+    let bytes = e.checkpoint(MID_RUN, tag);
+    caveflow::output::write_atomic(&path, &bytes).expect("cached state written");
+    bytes
+}
+
+fn mine_mid_run(c: &mut Criterion) {
+    let mut g = c.benchmark_group("mine_mid_run");
+    g.sample_size(10);
+    g.warm_up_time(Duration::from_secs(1));
+    g.measurement_time(Duration::from_secs(20));
+    // Everything is made inside the routine, so a filter that leaves this bench out costs
+    // nothing.
+    let mut made: Option<(Scene, Scenario)> = None;
+    let mut state: Option<Vec<u8>> = None;
+    g.bench_function(format!("{MID_RUN_DAYS}_days"), |bench| {
+        let (scene, sc) = made.get_or_insert_with(|| {
+            (
+                demo::henderson(DemoScale::Mine, 42),
+                demo::scenario(DemoScale::Mine, 42),
+            )
+        });
+        let tag = scene_tag(scene, sc);
+        let state = state.get_or_insert_with(|| {
+            let bytes = mid_run_state(scene, sc, &tag);
+            // The account of the same days, once.
+            let (e, next) = Engine::resume(scene, sc, &bytes, &tag).expect("mid-run state");
+            let mut e = e.keep_account();
+            for p in next..next + MID_RUN_DAYS {
+                e.run_period(p);
+            }
+            let account = e.account().expect("an account").report();
+            eprintln!(
+                "mine_mid_run: days {next}..{} ({} moving markers at the end)\n{account}",
+                next + MID_RUN_DAYS,
+                e.markers.len()
+            );
+            bytes
+        });
+        bench.iter_batched(
+            || {
+                Engine::resume(scene, sc, state, &tag)
+                    .expect("mid-run state")
+                    .0
+            },
+            |mut e| {
+                for p in MID_RUN..MID_RUN + MID_RUN_DAYS {
+                    e.run_period(p);
+                }
+                // Dropped outside the timing.
+                e
+            },
+            BatchSize::PerIteration,
+        )
+    });
     g.finish();
 }
 
-criterion_group!(benches, isolated_draw, marker_pass, demo_run, mine_run);
+criterion_group!(benches, isolated_draw, marker_pass, demo_run, mine_mid_run);
 criterion_main!(benches);

@@ -318,6 +318,11 @@ impl<'a> Engine<'a> {
         self
     }
 
+    /// The account kept so far ([`Engine::keep_account`]), if one is kept.
+    pub fn account(&self) -> Option<&Account> {
+        self.account.as_deref()
+    }
+
     /// The clock, when an account is kept.
     fn clock(&self) -> Option<Instant> {
         self.account.as_ref().map(|_| Instant::now())

@@ -102,7 +102,7 @@ pub const FRAG_FRACTION: f64 = 1.0;
 /// Default `resolution.max_marker_move` as a fraction of the marker spacing: a marker that
 /// is slow enough to move less than this per update steps less often (`engine::cadence`).
 /// One spacing against half a spacing: 0.103% against 0.090% grade RMSE on the demo sweep,
-/// and no measurable change over the mine scene's first 400 days (`docs::performance`,
+/// and no measurable change over the mine scene's first 400 days (`docs::resolution`,
 /// "Multi-rate cadence").
 pub const MAX_MOVE_FRACTION: f64 = 1.0;
 

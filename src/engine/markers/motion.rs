@@ -605,9 +605,9 @@ impl MotionField<'_> {
         }
     }
 
-    /// How many IMZs (and images across the walls) [`MotionField::part`] tests for a
-    /// marker at `p`, and how many of them hold it (`engine::account`): the same candidate
-    /// loops, counting instead of moving.
+    /// How many IMZs (and images across the walls) a marker step ([`MotionField::step`])
+    /// tests for a marker at `p`, and how many of them hold it (`engine::account`): the
+    /// same candidate loops, counting instead of moving.
     pub fn candidates(&self, p: [f64; 3]) -> (u64, u64) {
         let (mut tests, mut hits) = (0u64, 0u64);
         let mut count = |at: [f64; 2], q: [f64; 3]| {
