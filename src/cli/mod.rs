@@ -435,9 +435,9 @@ fn run(a: RunArgs) -> Result<ExitCode> {
         crate::io::sha256_hex(text.as_bytes())
     };
     let checkpoint = dir.join(CHECKPOINT_FILE);
-    let (engine, first) = match std::fs::read(&checkpoint) {
-        Ok(bytes) if a.resume => {
-            let (e, next) = Engine::resume(scene, &sc, &bytes, &tag)
+    let (engine, first) = match std::fs::File::open(&checkpoint) {
+        Ok(file) if a.resume => {
+            let (e, next) = Engine::resume_from(scene, &sc, std::io::BufReader::new(file), &tag)
                 .with_context(|| checkpoint.display().to_string())?;
             eprintln!("resuming at period {} of {}", next + 1, scene.periods.len());
             (e, next)
@@ -463,7 +463,7 @@ fn run(a: RunArgs) -> Result<ExitCode> {
                 let by_time = minutes > 0.0 && last.elapsed().as_secs_f64() >= 60.0 * minutes;
                 if (by_periods || by_time) && next < scene.periods.len() {
                     std::fs::create_dir_all(dir).with_context(|| dir.display().to_string())?;
-                    output::write_atomic(&checkpoint, &e.checkpoint(next, &tag))?;
+                    output::write_atomic_with(&checkpoint, |w| e.write_checkpoint(w, next, &tag))?;
                     last = std::time::Instant::now();
                 }
                 Ok(())

@@ -11,6 +11,10 @@
 //! A checkpoint carries a `tag` chosen by the caller (the CLI hashes the scenario and the
 //! input files into it); resuming with another tag is refused, so a checkpoint is never
 //! applied to inputs it was not made from.
+//!
+//! A checkpoint is encoded straight into its writer and decoded straight from its reader
+//! ([`Engine::write_checkpoint`], [`Engine::resume_from`]): at mine scale the state is
+//! hundreds of megabytes, and a second copy of it as bytes would be as large again.
 
 use serde::{Deserialize, Serialize};
 
@@ -64,8 +68,26 @@ fn config() -> bincode::config::Configuration {
 }
 
 impl<'a> Engine<'a> {
-    /// The state after period index `next − 1`, ready to resume at `next`.
+    /// The state after period index `next − 1`, ready to resume at `next`, as bytes (what
+    /// [`Engine::write_checkpoint`] writes).
     pub fn checkpoint(&self, next: usize, tag: &str) -> Vec<u8> {
+        let mut bytes = Vec::new();
+        // Writing into a Vec cannot fail.
+        self.write_checkpoint(&mut bytes, next, tag)
+            .expect("checkpoint encoding");
+        bytes
+    }
+
+    /// Writes the state after period index `next − 1`, ready to resume at `next`, to `w` as
+    /// it is encoded. Nothing of the state is copied first, so a mine-scale checkpoint
+    /// costs the engine no second copy of its markers in memory; give it a buffered
+    /// writer (`output::write_atomic_with`).
+    pub fn write_checkpoint(
+        &self,
+        w: &mut impl std::io::Write,
+        next: usize,
+        tag: &str,
+    ) -> std::io::Result<()> {
         let s = StateRef {
             version: VERSION,
             tag,
@@ -81,8 +103,12 @@ impl<'a> Engine<'a> {
             trace: &self.trace,
             out: &self.out,
         };
-        // Serialising plain data into a Vec cannot fail.
-        bincode::serde::encode_to_vec(&s, config()).expect("checkpoint encoding")
+        match bincode::serde::encode_into_std_write(&s, w, config()) {
+            Ok(_) => Ok(()),
+            Err(bincode::error::EncodeError::Io { inner, .. }) => Err(inner),
+            // Plain data has no other way to fail; say what happened if it ever does.
+            Err(e) => Err(std::io::Error::other(format!("checkpoint encoding: {e}"))),
+        }
     }
 
     /// An engine restored from a checkpoint of the same scene and scenario, and the index
@@ -93,8 +119,19 @@ impl<'a> Engine<'a> {
         bytes: &[u8],
         tag: &str,
     ) -> Result<(Engine<'a>, usize), EngineError> {
+        Engine::resume_from(scene, scenario, bytes, tag)
+    }
+
+    /// [`Engine::resume`] from a checkpoint read from `r` as it is decoded, so the file's
+    /// bytes are never held in memory beside the state (give it a buffered reader).
+    pub fn resume_from(
+        scene: &'a Scene,
+        scenario: &'a Scenario,
+        mut r: impl std::io::Read,
+        tag: &str,
+    ) -> Result<(Engine<'a>, usize), EngineError> {
         let bad = |why: String| EngineError::Checkpoint(why);
-        let (s, _): (State, usize) = bincode::serde::decode_from_slice(bytes, config())
+        let s: State = bincode::serde::decode_from_std_read(&mut r, config())
             .map_err(|e| bad(format!("unreadable ({e})")))?;
         if s.version != VERSION {
             return Err(bad(format!(

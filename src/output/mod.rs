@@ -1,7 +1,7 @@
 //! The output layer: everything a run or a command writes to disk.
 //!
-//! - [`parquet`]: atomic file writing ([`AtomicFile`], [`write_atomic`]) and the one Parquet
-//!   writer ([`write_parquet`]) that every table goes through.
+//! - [`parquet`]: atomic file writing ([`AtomicFile`], [`write_atomic`], [`write_atomic_with`])
+//!   and the one Parquet writer ([`write_parquet`]) that every table goes through.
 //! - [`run`]: a run directory — extraction report, IMZ geometry, drawn markers (IEZ),
 //!   partitioned marker states and the manifest ([`write_run`]).
 //! - [`dataset`]: the run's tables as Hive-partitioned datasets (`outputs.hive`).
@@ -45,7 +45,7 @@ pub mod vtk;
 pub mod warnings;
 
 pub use self::manifest::Manifest;
-pub use self::parquet::{write_atomic, write_batch, write_parquet, AtomicFile};
+pub use self::parquet::{write_atomic, write_atomic_with, write_batch, write_parquet, AtomicFile};
 pub use self::run::{write_run, write_run_with};
 pub use crate::model::load::InputFile;
 

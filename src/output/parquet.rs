@@ -182,8 +182,18 @@ pub(crate) fn persist<E>(
 
 /// Writes `bytes` to `path` atomically (text, JSON, TOML).
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), OutputError> {
+    write_atomic_with(path, |w| w.write_all(bytes))
+}
+
+/// Writes `path` atomically from `write`, which streams the contents into the (buffered)
+/// temporary file: for contents too large to hold as bytes first, such as a checkpoint
+/// (`Engine::write_checkpoint`). An error from `write` leaves the target untouched.
+pub fn write_atomic_with(
+    path: &Path,
+    write: impl FnOnce(&mut AtomicFile) -> io::Result<()>,
+) -> Result<(), OutputError> {
     let mut file = AtomicFile::create(path)?;
-    file.write_all(bytes).map_err(io_err(path))?;
+    write(&mut file).map_err(io_err(path))?;
     file.commit()
 }
 
