@@ -208,11 +208,12 @@ fn imz_widths(out: &RunOutput, n_dp: usize) -> Vec<f64> {
 fn iez_heights(out: &RunOutput, scene: &Scene) -> Vec<f64> {
     let n_dp = scene.drawpoints.len();
     let mut heights = vec![Vec::new(); n_dp];
-    let t = &out.drawn;
-    for i in 0..t.drawpoint.len() {
-        let d = t.drawpoint[i] as usize;
-        if d < n_dp {
-            heights[d].push(t.origin_z[i] - scene.drawpoints.z[d]);
+    for t in out.drawn_chunks(crate::engine::marker_tables::CHUNK_ROWS) {
+        for i in 0..t.drawpoint.len() {
+            let d = t.drawpoint[i] as usize;
+            if d < n_dp {
+                heights[d].push(t.origin_z[i] - scene.drawpoints.z[d]);
+            }
         }
     }
     heights

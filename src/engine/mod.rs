@@ -3,6 +3,8 @@
 //! - [`imz`]: IMZ growth by the r-law (summary §3.3).
 //! - [`markers`]: the marker lattice and marker motion (summary §3.3), superposition of
 //!   overlapping IMZs (summary §4.2).
+//! - [`marker_tables`]: the drawn-marker table and marker snapshots, read from the markers
+//!   (at the end of the run a range of rows at a time).
 //! - [`cadence`]: multi-rate marker updates: a slow marker steps once every 2^L updates.
 //! - [`crediting`]: the tonnes credited per period and the drawn stream they are read from.
 //! - [`resolution`]: the automatic choice of h, marker spacing and draw increment.
@@ -49,6 +51,7 @@ pub mod fines;
 pub mod fragmentation;
 mod height_of_draw;
 pub mod imz;
+pub mod marker_tables;
 pub mod markers;
 pub mod plan;
 pub mod random;
@@ -1101,8 +1104,10 @@ impl<'a> Engine<'a> {
             };
             surface_rows(&self.lattice, period, &h, table);
         }
+        // The end snapshot is read from the markers as `finish` leaves them
+        // (`marker_tables`), not made here.
         let wanted = &self.scenario.outputs.marker_periods;
-        if wanted.contains(&period) || (wanted.is_empty() && last) {
+        if wanted.contains(&period) && !last {
             let snap = self.snapshot(period);
             self.out.snapshots.push(snap);
         }
@@ -1122,53 +1127,14 @@ impl<'a> Engine<'a> {
     /// Marker states now: every moving and drawn marker, sorted by id.
     pub fn snapshot(&self, period: i64) -> MarkerSnapshot {
         let bm = &self.scene.blocks;
-        let mut rows: Vec<(u64, bool, usize)> = (0..self.markers.len())
-            .map(|k| (self.markers.id[k], false, k))
-            .chain((0..self.drawn.m.len()).map(|k| (self.drawn.m.id[k], true, k)))
-            .collect();
-        rows.sort_unstable();
-        let mut s = MarkerSnapshot {
-            period,
-            ..Default::default()
+        let rows = marker_tables::MarkerRows {
+            moving: &self.markers,
+            drawn: &self.drawn,
+            lattice: &self.lattice,
+            block_id: &bm.id,
+            porosity: &bm.n1,
         };
-        for (id, is_drawn, k) in rows {
-            let m = if is_drawn {
-                &self.drawn.m
-            } else {
-                &self.markers
-            };
-            let o = self.lattice.pos(id as usize);
-            let b = m.block[k] as usize;
-            s.marker_id.push(id as i64);
-            s.x.push(m.x[k]);
-            s.y.push(m.y[k]);
-            s.z.push(m.z[k]);
-            s.origin_x.push(o[0]);
-            s.origin_y.push(o[1]);
-            s.origin_z.push(o[2]);
-            s.mass.push(m.mass[k]);
-            s.block_id.push(bm.id[b]);
-            s.state.push(if is_drawn {
-                MarkerState::Drawn
-            } else {
-                MarkerState::Moving
-            });
-            s.porosity.push(bm.n1[b]);
-            s.frag_size.push(m.frag[k]);
-            s.shear_strain.push(m.strain[k]);
-            s.shear_work.push(m.work[k]);
-            s.primary_frag_size.push(m.frag0[k]);
-            s.attrited.push(m.attrited[k]);
-            s.percolated.push(m.percolated[k]);
-            s.drawpoint.push(if is_drawn {
-                self.drawn.drawpoint[k]
-            } else {
-                u32::MAX
-            });
-            s.drawn_period
-                .push(if is_drawn { self.drawn.period[k] } else { -1 });
-        }
-        s
+        rows.snapshot(period, &rows.snapshot_order())
     }
 
     /// What each extraction row drew, read from its drawpoint's stream over the row's
@@ -1212,28 +1178,18 @@ impl<'a> Engine<'a> {
         }
     }
 
-    /// Completes the output: the drawn-marker table, the mass balance and warnings.
+    /// Completes the output: the mass balance, the warnings, and the markers handed over as
+    /// they are ([`marker_tables::EndMarkers`]: the drawn table and the end snapshot).
     fn finish(mut self) -> RunOutput {
         let mut clock = self.clock();
+        // At mine scale the end of the run is where memory peaks: what is read no more is
+        // let go as soon as it is not (the draw times are the streams', kept in `drawn`
+        // for a resume only; the streams once read).
+        self.drawn.tau = Vec::new();
         self.read_streams();
-        let bm = &self.scene.blocks;
+        self.streams = Vec::new();
+        self.rims = Vec::new();
         let dm = &self.drawn;
-        let mut order: Vec<usize> = (0..dm.m.len()).collect();
-        order.sort_unstable_by_key(|&k| dm.m.id[k]);
-        let t = &mut self.out.drawn;
-        for k in order {
-            let o = self.lattice.pos(dm.m.id[k] as usize);
-            t.marker_id.push(dm.m.id[k] as i64);
-            t.drawpoint.push(dm.drawpoint[k]);
-            t.period.push(dm.period[k]);
-            t.origin_x.push(o[0]);
-            t.origin_y.push(o[1]);
-            t.origin_z.push(o[2]);
-            t.mass.push(dm.m.mass[k]);
-            t.block_id.push(bm.id[dm.m.block[k] as usize]);
-            t.frag_size.push(dm.m.frag[k]);
-            t.rill_distance.push(dm.m.rill[k]);
-        }
         let sched = &self.scene.schedule;
         let n_dp = self.scene.drawpoints.len();
         let b = &mut self.out.balance;
@@ -1271,6 +1227,19 @@ impl<'a> Engine<'a> {
                     message: format!("drawpoint {name}: IMZ held under uncaved ground; {:.3e} m3 of void is still an air gap at the end of the run", imz.air),
                 });
             }
+        }
+        let scene = self.scene;
+        if let Some(&last) = scene.periods.id.last() {
+            let wanted = &self.scenario.outputs.marker_periods;
+            let snapshot = wanted.is_empty() || wanted.contains(&last);
+            self.out.end = Some(marker_tables::EndMarkers::new(
+                last,
+                snapshot,
+                std::mem::take(&mut self.markers),
+                std::mem::take(&mut self.drawn),
+                self.lattice,
+                &scene.blocks,
+            ));
         }
         self.charge(Phase::Finish, &mut clock);
         self.out.account = self.account.take().map(|a| *a);
@@ -1444,6 +1413,7 @@ mod tests {
             assert!(format!("{a:?}") == format!("{b:?}"), "{what} differs");
         };
         same(&sorted.extraction, &reversed.extraction, "extraction");
+        let (sorted, reversed) = (sorted.with_tables(), reversed.with_tables());
         same(&sorted.drawn, &reversed.drawn, "drawn");
         same(&sorted.imz, &reversed.imz, "imz");
         same(&sorted.air_gap, &reversed.air_gap, "air gap");

@@ -1,27 +1,10 @@
 //! What a run produces, column-wise, before it is written.
 
-/// Marker states (`markers.state`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
-#[repr(u8)]
-pub enum MarkerState {
-    /// Never mobilised: at its lattice origin.
-    InSitu = 0,
-    /// Inside an IMZ (dilated, moving).
-    Moving = 1,
-    /// Left the lowest disk of an IMZ.
-    Drawn = 2,
-}
+use std::borrow::Cow;
+use std::ops::Range;
 
-impl MarkerState {
-    /// Name written to Parquet.
-    pub fn name(self) -> &'static str {
-        match self {
-            MarkerState::InSitu => "in_situ",
-            MarkerState::Moving => "moving",
-            MarkerState::Drawn => "drawn",
-        }
-    }
-}
+use super::marker_tables::EndMarkers;
+pub use super::marker_tables::{DrawnTable, MarkerSnapshot, MarkerState};
 
 /// Extraction report rows (drawpoint-major within period order).
 #[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -118,76 +101,6 @@ pub struct ImzTable {
     pub z_top: Vec<f64>,
     /// Radius R_i, m.
     pub radius: Vec<f64>,
-}
-
-/// Drawn markers (IEZ).
-#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct DrawnTable {
-    /// Marker id.
-    pub marker_id: Vec<i64>,
-    /// Drawpoint index.
-    pub drawpoint: Vec<u32>,
-    /// Period number.
-    pub period: Vec<i64>,
-    /// Origin.
-    pub origin_x: Vec<f64>,
-    /// Origin.
-    pub origin_y: Vec<f64>,
-    /// Origin.
-    pub origin_z: Vec<f64>,
-    /// Mass, t.
-    pub mass: Vec<f64>,
-    /// Block id.
-    pub block_id: Vec<i64>,
-    /// Horizontal distance rilled on the free surface, m.
-    pub rill_distance: Vec<f64>,
-    /// Fragment size when drawn, m.
-    pub frag_size: Vec<f64>,
-}
-
-/// Marker states at the end of one period.
-#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct MarkerSnapshot {
-    /// Period number.
-    pub period: i64,
-    /// Marker id.
-    pub marker_id: Vec<i64>,
-    /// Position.
-    pub x: Vec<f64>,
-    /// Position.
-    pub y: Vec<f64>,
-    /// Position.
-    pub z: Vec<f64>,
-    /// Origin.
-    pub origin_x: Vec<f64>,
-    /// Origin.
-    pub origin_y: Vec<f64>,
-    /// Origin.
-    pub origin_z: Vec<f64>,
-    /// Mass, t.
-    pub mass: Vec<f64>,
-    /// Block id.
-    pub block_id: Vec<i64>,
-    /// State.
-    pub state: Vec<MarkerState>,
-    /// Porosity.
-    pub porosity: Vec<f64>,
-    /// Fragment size, m.
-    pub frag_size: Vec<f64>,
-    /// Accumulated shear strain Γ.
-    pub shear_strain: Vec<f64>,
-    /// Accumulated shear work Γσ_n, kPa.
-    pub shear_work: Vec<f64>,
-    /// Primary fragment size d0, m.
-    pub primary_frag_size: Vec<f64>,
-    /// Attrited mass fraction W.
-    pub attrited: Vec<f64>,
-    /// Accumulated percolation distance, m.
-    pub percolated: Vec<f64>,
-    /// Drawpoint index that drew it (u32::MAX if not drawn).
-    pub drawpoint: Vec<u32>,
-    /// Period drawn (-1 if not drawn).
-    pub drawn_period: Vec<i64>,
 }
 
 /// What a run warning is about (the rule it reports).
@@ -372,10 +285,20 @@ pub struct RunOutput {
     pub extraction: Extraction,
     /// IMZ geometry.
     pub imz: ImzTable,
-    /// Drawn markers.
+    /// Drawn markers, held whole: a run made by hand. The engine leaves this empty and
+    /// hands the drawn markers over in [`end`](RunOutput::end); read the table through
+    /// [`RunOutput::drawn_chunks`] or [`RunOutput::drawn_table`], which read either.
     pub drawn: DrawnTable,
-    /// Marker snapshots.
+    /// Marker snapshots held whole: the engine's of the periods before the last
+    /// (`outputs.marker_periods`); the end snapshot is read from
+    /// [`end`](RunOutput::end). Read them through [`RunOutput::snapshot_periods`] and
+    /// [`RunOutput::snapshot_chunks`], which read both.
     pub snapshots: Vec<MarkerSnapshot>,
+    /// The markers as the run left them, read as the drawn table and the end snapshot a
+    /// range of rows at a time (`engine::marker_tables`); None for a run made by hand or a
+    /// run not finished (a checkpoint).
+    #[serde(skip)]
+    pub end: Option<EndMarkers>,
     /// Air gap per block column and period.
     pub air_gap: AirGapTable,
     /// Free surface at the chosen periods.
@@ -436,4 +359,107 @@ fn static_names<'de, D: serde::Deserializer<'de>>(
                 .ok_or_else(|| serde::de::Error::custom(format!("unknown {what} {n:?}")))
         })
         .collect()
+}
+
+// The marker tables of a run, wherever they are held (`engine::marker_tables`).
+
+/// Consecutive ranges of at most `rows` rows over `0..n`; one empty range when `n` is 0,
+/// so that an empty table still comes as one (empty) chunk.
+fn ranges(n: usize, rows: usize) -> impl Iterator<Item = Range<usize>> {
+    let rows = rows.max(1);
+    (0..n.max(1))
+        .step_by(rows)
+        .map(move |a| a.min(n)..(a + rows).min(n))
+}
+
+impl RunOutput {
+    /// The periods of the run's marker snapshots, ascending: those of
+    /// [`snapshots`](RunOutput::snapshots), then the end's.
+    pub fn snapshot_periods(&self) -> Vec<i64> {
+        let mut p: Vec<i64> = self.snapshots.iter().map(|s| s.period).collect();
+        p.extend(self.end.as_ref().and_then(EndMarkers::snapshot_period));
+        p
+    }
+
+    /// The marker snapshot of `period` as chunks of at most `rows` rows in marker-id order
+    /// (a snapshot held whole comes as one chunk); None when the run kept no snapshot of
+    /// `period`.
+    pub fn snapshot_chunks(
+        &self,
+        period: i64,
+        rows: usize,
+    ) -> Option<Box<dyn Iterator<Item = Cow<'_, MarkerSnapshot>> + '_>> {
+        if let Some(s) = self.snapshots.iter().find(|s| s.period == period) {
+            return Some(Box::new(std::iter::once(Cow::Borrowed(s))));
+        }
+        let end = self.end.as_ref()?;
+        (end.snapshot_period() == Some(period)).then(|| {
+            let chunks =
+                ranges(end.snapshot_len(), rows).map(move |r| Cow::Owned(end.snapshot_range(r)));
+            Box::new(chunks) as Box<dyn Iterator<Item = _>>
+        })
+    }
+
+    /// The marker snapshot of `period`, whole (None: the run kept none). At mine scale the
+    /// end snapshot is large; read it with [`RunOutput::snapshot_chunks`] where memory
+    /// matters.
+    pub fn snapshot(&self, period: i64) -> Option<Cow<'_, MarkerSnapshot>> {
+        if let Some(s) = self.snapshots.iter().find(|s| s.period == period) {
+            return Some(Cow::Borrowed(s));
+        }
+        let end = self.end.as_ref()?;
+        (end.snapshot_period() == Some(period))
+            .then(|| Cow::Owned(end.snapshot_range(0..end.snapshot_len())))
+    }
+
+    /// Every marker snapshot, whole, in period order ([`RunOutput::snapshot`]).
+    pub fn snapshot_tables(&self) -> Vec<Cow<'_, MarkerSnapshot>> {
+        self.snapshot_periods()
+            .into_iter()
+            .filter_map(|p| self.snapshot(p))
+            .collect()
+    }
+
+    /// The run with its drawn table and end snapshot made whole, in
+    /// [`drawn`](RunOutput::drawn) and [`snapshots`](RunOutput::snapshots), as a run made
+    /// by hand holds them, and the end markers let go: plain tables for a small run (at
+    /// mine scale they are large).
+    pub fn with_tables(mut self) -> RunOutput {
+        if let Some(end) = self.end.take() {
+            self.drawn = end.drawn_range(0..end.drawn_len());
+            if end.snapshot_period().is_some() {
+                self.snapshots
+                    .push(end.snapshot_range(0..end.snapshot_len()));
+            }
+        }
+        self
+    }
+
+    /// Rows of the drawn table.
+    pub fn drawn_len(&self) -> usize {
+        match &self.end {
+            Some(end) => end.drawn_len(),
+            None => self.drawn.marker_id.len(),
+        }
+    }
+
+    /// The drawn table as chunks of at most `rows` rows in marker-id order (a table held
+    /// whole in [`drawn`](RunOutput::drawn) comes as one chunk).
+    pub fn drawn_chunks(&self, rows: usize) -> Box<dyn Iterator<Item = Cow<'_, DrawnTable>> + '_> {
+        match &self.end {
+            Some(end) => {
+                Box::new(ranges(end.drawn_len(), rows).map(move |r| Cow::Owned(end.drawn_range(r))))
+            }
+            None => Box::new(std::iter::once(Cow::Borrowed(&self.drawn))),
+        }
+    }
+
+    /// The drawn table, whole. At mine scale it is large; read it with
+    /// [`RunOutput::drawn_chunks`] where memory matters.
+    pub fn drawn_table(&self) -> Cow<'_, DrawnTable> {
+        match &self.end {
+            Some(end) => Cow::Owned(end.drawn_range(0..end.drawn_len())),
+            None => Cow::Borrowed(&self.drawn),
+        }
+    }
 }

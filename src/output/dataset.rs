@@ -41,7 +41,7 @@ use arrow::compute::take_record_batch;
 use arrow::datatypes::Int64Type;
 use arrow::record_batch::RecordBatch;
 
-use super::parquet::write_batch;
+use super::parquet::{write_batches, PART_ROWS};
 use super::OutputError;
 use crate::model::{Periods, Scenario};
 
@@ -124,11 +124,37 @@ pub fn write_dataset(
     };
     let col = batch.schema().index_of("period").map_err(arrow_err)?;
     let period = batch.column(col).as_primitive::<Int64Type>();
+    let rows = |rows: &[u32]| {
+        if rows.len() == batch.num_rows() {
+            Ok(batch.clone())
+        } else {
+            take_record_batch(batch, &UInt32Array::from(rows.to_vec())).map_err(arrow_err)
+        }
+    };
+    write_dataset_with(root, period.iter(), periods, layout, rows)
+}
+
+/// [`write_dataset`] of a table that is not held as one batch: `period` gives each row's
+/// period in row order, and `rows(r)` the batch of rows `r` (ascending row numbers), with
+/// the table's `period` column. A partition's rows are asked for
+/// [`PART_ROWS`] at a time, so memory holds a part of the table however large a partition
+/// is, and the files are those [`write_dataset`] writes from the whole table.
+pub fn write_dataset_with(
+    root: &Path,
+    period: impl Iterator<Item = Option<i64>>,
+    periods: &Periods,
+    layout: &HiveLayout,
+    mut rows: impl FnMut(&[u32]) -> Result<RecordBatch, OutputError>,
+) -> Result<Vec<PathBuf>, OutputError> {
+    let arrow_err = |source| OutputError::Arrow {
+        path: root.to_path_buf(),
+        source,
+    };
     let per = layout.periods_per_partition.max(1);
     // Rows per partition (by the period's position in the run), in row order.
     let mut parts: Vec<Vec<u32>> = vec![Vec::new(); periods.len().div_ceil(per).max(1)];
     let mut unknown: Vec<u32> = Vec::new();
-    for (i, p) in period.iter().enumerate() {
+    for (i, p) in period.enumerate() {
         match p.and_then(|p| periods.find(p)) {
             Some(k) => parts[k / per].push(i as u32),
             None => unknown.push(i as u32),
@@ -154,27 +180,26 @@ pub fn write_dataset(
         fs::remove_dir_all(&tmp).map_err(io_err(&tmp))?;
     }
     let mut written = Vec::new();
-    for (g, rows) in parts.iter().enumerate().filter(|(_, r)| !r.is_empty()) {
+    for (g, part) in parts.iter().enumerate().filter(|(_, r)| !r.is_empty()) {
         let first = periods.id[g * per];
-        let (dir, part) = if per == 1 {
+        let dir = if per == 1 {
+            format!("period={first}")
+        } else {
+            format!("period_group={first}")
+        };
+        let batches = part.chunks(PART_ROWS).map(|r| {
+            let batch = rows(r)?;
+            if per > 1 {
+                return Ok(batch);
+            }
             // The key is the directory only: drop the column.
+            let col = batch.schema().index_of("period").map_err(arrow_err)?;
             let keep: Vec<usize> = (0..batch.num_columns()).filter(|&c| c != col).collect();
-            (
-                format!("period={first}"),
-                batch.project(&keep).map_err(arrow_err)?,
-            )
-        } else {
-            (format!("period_group={first}"), batch.clone())
-        };
-        let idx = UInt32Array::from(rows.clone());
-        let part = if rows.len() == part.num_rows() {
-            part
-        } else {
-            take_record_batch(&part, &idx).map_err(arrow_err)?
-        };
+            batch.project(&keep).map_err(arrow_err)
+        });
         let dir_path = tmp.join(&dir);
         fs::create_dir_all(&dir_path).map_err(io_err(&dir_path))?;
-        write_batch(&dir_path.join("part-0.parquet"), &part)?;
+        write_batches(&dir_path.join("part-0.parquet"), batches)?;
         written.push(target.join(dir).join("part-0.parquet"));
     }
     // Swap the new partitions in.

@@ -31,6 +31,7 @@
 //! engine, so where a layer was never mobilised it is drawn flat at its in-situ elevation;
 //! where its markers were drawn the layer is broken (the material has left the model).
 
+use std::borrow::Cow;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
@@ -42,6 +43,10 @@ use super::dilution::dilution_entries;
 use crate::engine::result::{MarkerSnapshot, MarkerState, RunOutput, SurfaceTable};
 use crate::model::block_model::NO_BLOCK;
 use crate::model::{BlockModel, Scene};
+
+/// Rows of the drawn table and of a marker snapshot a section reads at a time (the engine's
+/// end tables are read from its markers in chunks, `engine::marker_tables`).
+const CHUNK: usize = 1 << 16;
 
 /// Most drawdown sections [`write_run_charts`] draws; with more rows of drawpoints it keeps
 /// the rows that drew the most tonnes.
@@ -225,12 +230,13 @@ pub fn run_sections(
 /// One drawdown section along x (Easting) through the Northing `y`, for the drawpoints `row`,
 /// at the end of `period`.
 ///
-/// - **Layers.** From the marker snapshot of `period` in `run.snapshots`, if there is one
-///   (`outputs.marker_periods`; the last period by default). The section is the lattice row
-///   of markers nearest to `y` (its origins lie within half a marker spacing of `y`; when `y`
-///   falls exactly between two rows the southern one is used). Layers are the lattice levels
-///   nearest to the model base + (k − ½) × `layer_spacing` (k = 1, 2, … up to the model top,
-///   so each is the middle of a band `layer_spacing` thick; None: [`default_layer_spacing`]).
+/// - **Layers.** From the marker snapshot of `period` ([`RunOutput::snapshot_chunks`]), if
+///   there is one (`outputs.marker_periods`; the last period by default). The section is
+///   the lattice row of markers nearest to `y` (its origins lie within half a marker spacing
+///   of `y`; when `y` falls exactly between two rows the southern one is used). Layers are
+///   the lattice levels nearest to the model base + (k − ½) × `layer_spacing` (k = 1, 2, …
+///   up to the model top, so each is the middle of a band `layer_spacing` thick; None:
+///   [`default_layer_spacing`]).
 ///   Each layer is a polyline along the lattice columns in order of origin Easting: a moving
 ///   marker at its current (x, z), a column never mobilised at its in-situ (x, z), and a
 ///   drawn marker as a break. Runs of in-situ columns are reduced to their two ends.
@@ -242,9 +248,10 @@ pub fn run_sections(
 ///   through [`imz_outline`] about the drawpoint's Easting, cut at the free surface: above
 ///   it the disks hold air (void that left the top of the IMZ), not moving rock.
 /// - **IEZ outlines.** The origins of the markers each drawpoint of `row` drew by the end of
-///   `period` (`run.drawn`) that lie on the section's lattice row, so the outline is the IEZ
-///   cut by the section plane (not the projection of the whole IEZ), consistent with the
-///   breaks in the layers; binned every marker spacing in elevation by [`iez_outline`].
+///   `period` ([`RunOutput::drawn_chunks`]) that lie on the section's lattice row, so the
+///   outline is the IEZ cut by the section plane (not the projection of the whole IEZ),
+///   consistent with the breaks in the layers; binned every marker spacing in elevation by
+///   [`iez_outline`].
 /// - **Drawpoints.** Name and cumulative mass drawn by the end of `period` ([`fmt_mass`]).
 ///
 /// The marker spacing is `run.resolution.marker_spacing` when set, else inferred from the
@@ -267,16 +274,20 @@ pub fn drawdown_section(
         z_range: (bm.origin[2], max[2]),
         ..Section::default()
     };
-    let snapshot = run.snapshots.iter().find(|s| s.period == period);
-    let any_snapshot = snapshot.or_else(|| run.snapshots.iter().max_by_key(|s| s.period));
+    let snapshots = run.snapshot_periods();
+    let snapshot = snapshots.contains(&period).then_some(period);
+    let any_snapshot = snapshot.or_else(|| snapshots.iter().max().copied());
     let lattice =
         marker_spacing(run, any_snapshot).map(|s| SectionLattice::new(bm, run, any_snapshot, s));
 
-    if let (Some(lat), Some(snap)) = (&lattice, snapshot) {
+    if let (Some(lat), Some(chunks)) = (
+        &lattice,
+        snapshot.and_then(|p| run.snapshot_chunks(p, CHUNK)),
+    ) {
         let spacing = layer_spacing
             .filter(|l| l.is_finite() && *l > 0.0)
             .unwrap_or_else(|| default_layer_spacing(max[2] - bm.origin[2], lat.s));
-        section.layers = layers(lat, snap, y, spacing);
+        section.layers = layers(lat, chunks, y, spacing);
     }
 
     // The free surface of the period along the lattice row nearest the section.
@@ -323,6 +334,21 @@ pub fn drawdown_section(
 
     let imz = &run.imz;
     let drawn = tonnes_by(run, dp.len(), period);
+    // The origins of what each drawpoint of the row drew by the end of `period`, on the
+    // section's lattice row: one pass over the drawn table.
+    let mut iez: HashMap<usize, Vec<(f64, f64)>> = row.iter().map(|&d| (d, Vec::new())).collect();
+    if let Some(lat) = &lattice {
+        let j = lat.index(1, y);
+        for t in run.drawn_chunks(CHUNK) {
+            for i in 0..t.drawpoint.len() {
+                if t.period[i] <= period && lat.index(1, t.origin_y[i]) == j {
+                    if let Some(points) = iez.get_mut(&(t.drawpoint[i] as usize)) {
+                        points.push((t.origin_x[i], t.origin_z[i]));
+                    }
+                }
+            }
+        }
+    }
     for &d in row {
         let disks: Vec<(f64, f64, f64)> = (0..imz.period.len())
             .filter(|&i| imz.period[i] == period && imz.drawpoint[i] as usize == d)
@@ -340,19 +366,10 @@ pub fn drawdown_section(
             section.imz.push(outline);
         }
         if let Some(lat) = &lattice {
-            let j = lat.index(1, y);
-            let t = &run.drawn;
-            let points: Vec<(f64, f64)> = (0..t.drawpoint.len())
-                .filter(|&i| {
-                    t.drawpoint[i] as usize == d
-                        && t.period[i] <= period
-                        && lat.index(1, t.origin_y[i]) == j
-                })
-                .map(|i| (t.origin_x[i], t.origin_z[i]))
-                .collect();
+            let points = &iez[&d];
             // The outline is symmetric about the axis; material rilled in from one side
             // would mirror past the model's edge on the other, so it is clipped to the model.
-            let outline: Vec<(f64, f64)> = iez_outline(&points, dp.x[d], lat.s)
+            let outline: Vec<(f64, f64)> = iez_outline(points, dp.x[d], lat.s)
                 .into_iter()
                 .map(|(x, z)| (x.clamp(bm.origin[0], max[0]), z))
                 .collect();
@@ -575,14 +592,15 @@ impl SectionLattice {
     /// Sites are `start + i s`. The phase comes from an observed marker origin when there is
     /// one (so it matches the engine whatever its convention), else the engine's
     /// `origin + (i + ½) s`; sites cover the block grid.
-    fn new(bm: &BlockModel, run: &RunOutput, snap: Option<&MarkerSnapshot>, s: f64) -> Self {
+    fn new(bm: &BlockModel, run: &RunOutput, snap: Option<i64>, s: f64) -> Self {
         let max = bm.max_corner();
+        let first = |x: &[f64], y: &[f64], z: &[f64]| (!x.is_empty()).then(|| [x[0], y[0], z[0]]);
         let seen = snap
-            .filter(|m| !m.origin_x.is_empty())
-            .map(|m| [m.origin_x[0], m.origin_y[0], m.origin_z[0]])
+            .and_then(|p| run.snapshot_chunks(p, 1)?.next())
+            .and_then(|m| first(&m.origin_x, &m.origin_y, &m.origin_z))
             .or_else(|| {
-                let t = &run.drawn;
-                (!t.origin_x.is_empty()).then(|| [t.origin_x[0], t.origin_y[0], t.origin_z[0]])
+                let t = run.drawn_chunks(1).next()?;
+                first(&t.origin_x, &t.origin_y, &t.origin_z)
             });
         let mut start = [0.0; 3];
         let mut n = [0i64; 3];
@@ -609,19 +627,29 @@ impl SectionLattice {
 
 /// Marker spacing: the run's resolved spacing when set, else the smallest gap between
 /// distinct origin coordinates (any axis) of the snapshot's markers and the drawn markers.
-fn marker_spacing(run: &RunOutput, snap: Option<&MarkerSnapshot>) -> Option<f64> {
+fn marker_spacing(run: &RunOutput, snap: Option<i64>) -> Option<f64> {
     let s = run.resolution.marker_spacing;
     if s.is_finite() && s > 0.0 {
         return Some(s);
     }
     let mut best = f64::INFINITY;
-    let mut axes: Vec<&[f64]> = vec![
-        &run.drawn.origin_x,
-        &run.drawn.origin_y,
-        &run.drawn.origin_z,
-    ];
-    if let Some(m) = snap {
-        axes.extend([&m.origin_x[..], &m.origin_y[..], &m.origin_z[..]]);
+    let mut axes: Vec<Vec<f64>> = vec![Vec::new(); 3];
+    for t in run.drawn_chunks(CHUNK) {
+        for (a, v) in axes.iter_mut().zip([&t.origin_x, &t.origin_y, &t.origin_z]) {
+            a.extend_from_slice(v);
+        }
+    }
+    if let Some(chunks) = snap.and_then(|p| run.snapshot_chunks(p, CHUNK)) {
+        let mut snap_axes: Vec<Vec<f64>> = vec![Vec::new(); 3];
+        for m in chunks {
+            for (a, v) in snap_axes
+                .iter_mut()
+                .zip([&m.origin_x, &m.origin_y, &m.origin_z])
+            {
+                a.extend_from_slice(v);
+            }
+        }
+        axes.extend(snap_axes);
     }
     for values in axes {
         let mut v: Vec<f64> = values.iter().copied().filter(|x| x.is_finite()).collect();
@@ -647,27 +675,29 @@ enum Site {
 }
 
 /// The deformed layers on the lattice row nearest to `y` (see [`drawdown_section`]).
-fn layers(
+fn layers<'r>(
     lat: &SectionLattice,
-    snap: &MarkerSnapshot,
+    snapshot: impl Iterator<Item = Cow<'r, MarkerSnapshot>>,
     y: f64,
     spacing: f64,
 ) -> Vec<Vec<(f64, f64)>> {
     let j = lat.index(1, y).clamp(0, lat.n[1] - 1);
     let mut sites: HashMap<(i64, i64), Site> = HashMap::new();
-    for m in 0..snap.marker_id.len() {
-        if lat.index(1, snap.origin_y[m]) != j {
-            continue;
+    for snap in snapshot {
+        for m in 0..snap.marker_id.len() {
+            if lat.index(1, snap.origin_y[m]) != j {
+                continue;
+            }
+            let key = (
+                lat.index(0, snap.origin_x[m]),
+                lat.index(2, snap.origin_z[m]),
+            );
+            let site = match snap.state[m] {
+                MarkerState::Drawn => Site::Drawn,
+                _ => Site::Moving(snap.x[m], snap.z[m]),
+            };
+            sites.insert(key, site);
         }
-        let key = (
-            lat.index(0, snap.origin_x[m]),
-            lat.index(2, snap.origin_z[m]),
-        );
-        let site = match snap.state[m] {
-            MarkerState::Drawn => Site::Drawn,
-            _ => Site::Moving(snap.x[m], snap.z[m]),
-        };
-        sites.insert(key, site);
     }
     let base = lat.start[2] - 0.5 * lat.s;
     let top = lat.coord(2, lat.n[2] - 1) + 0.5 * lat.s;
@@ -924,7 +954,7 @@ mod tests {
     fn run_charts_are_written_as_png() {
         let scene = two_drawpoints().scene();
         let out = run(&scene, 0.05, 0.025);
-        assert!(!out.snapshots.is_empty());
+        assert!(!out.snapshot_periods().is_empty());
         let (_keep, dir) = out_dir("figures-two-dp");
         let written = write_run_charts(&dir, &scene, &out, None, &[3]).unwrap();
         let names: Vec<String> = written
@@ -1189,10 +1219,13 @@ mod tests {
             origin_z: vec![1.025, 1.025, 1.075],
             ..MarkerSnapshot::default()
         };
-        let out = RunOutput::default();
-        let s = marker_spacing(&out, Some(&snap)).unwrap();
+        let out = RunOutput {
+            snapshots: vec![snap],
+            ..RunOutput::default()
+        };
+        let s = marker_spacing(&out, Some(0)).unwrap();
         assert!((s - 0.05).abs() < 1e-12, "{s}");
-        assert!(marker_spacing(&out, None).is_none());
+        assert!(marker_spacing(&RunOutput::default(), None).is_none());
     }
 
     #[test]

@@ -28,6 +28,12 @@ use super::OutputError;
 /// enough that a reader can skip most of a mine-scale table using the statistics.
 pub const MAX_ROW_GROUP_ROWS: usize = 1 << 20;
 
+/// Rows per batch when a table is written a part at a time ([`write_batches`]): small,
+/// so that memory holds little more than the row group being encoded, and a divisor of
+/// [`MAX_ROW_GROUP_ROWS`] and a multiple of the writer's mini-batch of 1024 rows, so that
+/// the file is byte for byte the one written from the whole table at once.
+pub const PART_ROWS: usize = 1 << 17;
+
 /// zstd level: 3 is zstd's own default, a good balance of speed and size for float columns.
 const ZSTD_LEVEL: i32 = 3;
 
@@ -230,14 +236,35 @@ pub fn write_parquet(
 /// Writes one record batch atomically as Parquet, its schema (with the fields' `unit` and
 /// `description` metadata) stored in the file.
 pub fn write_batch(path: &Path, batch: &RecordBatch) -> Result<(), OutputError> {
+    write_batches(path, std::iter::once(Ok(batch.clone())))
+}
+
+/// Writes one table atomically as Parquet from its rows in consecutive batches, each made
+/// only when the writer wants it, so that memory holds one batch and the row group being
+/// encoded rather than the whole table. The schema is the first batch's (every batch must
+/// have it), and there must be a first batch (it may have no rows). Batches of
+/// [`PART_ROWS`] rows give the file [`write_batch`] writes from the whole table, byte for
+/// byte.
+pub fn write_batches(
+    path: &Path,
+    mut batches: impl Iterator<Item = Result<RecordBatch, OutputError>>,
+) -> Result<(), OutputError> {
     let parquet_err = |source| OutputError::Parquet {
         path: path.to_path_buf(),
         source,
     };
+    let first = batches.next().ok_or_else(|| OutputError::Encode {
+        path: path.to_path_buf(),
+        message: "a table with no batch, not even an empty one".into(),
+    })??;
     let mut file = AtomicFile::create(path)?;
     let mut writer =
-        ArrowWriter::try_new(&mut file, batch.schema(), Some(properties())).map_err(parquet_err)?;
-    writer.write(batch).map_err(parquet_err)?;
+        ArrowWriter::try_new(&mut file, first.schema(), Some(properties())).map_err(parquet_err)?;
+    writer.write(&first).map_err(parquet_err)?;
+    drop(first);
+    for batch in batches {
+        writer.write(&batch?).map_err(parquet_err)?;
+    }
     writer.close().map_err(parquet_err)?;
     file.commit()
 }

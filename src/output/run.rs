@@ -15,10 +15,15 @@
 //! ```
 //!
 //! The writers take the run's tables by value: their `Vec` columns move into Arrow arrays
-//! without a copy, which matters at mine scale (millions of rows). Draw anything that needs
-//! the in-memory tables (charts) before writing.
+//! without a copy, which matters at mine scale (millions of rows). The drawn table and the
+//! end snapshot are not held as tables at all: they are read from the engine's markers a
+//! part at a time (`engine::marker_tables`, [`PART_ROWS`] rows) and written as they are
+//! read, so memory holds the markers, one part and the row group being encoded. Draw
+//! anything that needs the run (charts) before writing.
 
+use std::borrow::Cow;
 use std::fs;
+use std::mem::take;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -26,9 +31,9 @@ use arrow::array::{ArrayRef, StringArray};
 use arrow::error::ArrowError;
 use arrow::record_batch::RecordBatch;
 
-use super::columns::{f64s, f64s_or_null, i64s, names, states, table_batch, write_table};
-use super::dataset::{write_dataset, HiveLayout};
-use super::parquet::write_batch;
+use super::columns::{f64s, f64s_or_null, i64s, names, states, table_batch};
+use super::dataset::{write_dataset, write_dataset_with, HiveLayout};
+use super::parquet::{write_batch, write_batches, PART_ROWS};
 use super::{Manifest, OutputError};
 use crate::engine::result::{
     AirGapTable, DrawnTable, Extraction, ImzTable, MarkerSnapshot, RunOutput, SurfaceTable,
@@ -142,16 +147,8 @@ pub fn surface_batch(t: SurfaceTable) -> Result<RecordBatch, ArrowError> {
     table_batch(&SURFACE, fixed, Vec::new())
 }
 
-/// Writes one marker snapshot as `<dir>/period=<N>/part-0.parquet` (Hive partitioning, so
-/// polars, DuckDB and Arrow datasets read `<dir>` as one table). The `period` column is kept
-/// inside the file too, so a single file stands on its own. Returns the file's path.
-pub fn write_markers(dir: &Path, scene: &Scene, t: MarkerSnapshot) -> Result<PathBuf, OutputError> {
-    let part = dir.join(format!("period={}", t.period));
-    fs::create_dir_all(&part).map_err(|source| OutputError::Io {
-        path: part.clone(),
-        source,
-    })?;
-    let path = part.join("part-0.parquet");
+/// One marker snapshot's rows as a record batch.
+pub fn markers_batch(scene: &Scene, t: MarkerSnapshot) -> Result<RecordBatch, ArrowError> {
     let rows = t.marker_id.len();
     let fixed = vec![
         ("marker_id", i64s(t.marker_id)),
@@ -175,8 +172,88 @@ pub fn write_markers(dir: &Path, scene: &Scene, t: MarkerSnapshot) -> Result<Pat
         ("drawpoint", names(&t.drawpoint, &scene.drawpoints.name)),
         ("drawn_period", i64s(t.drawn_period)),
     ];
-    write_table(&path, &MARKERS, fixed, Vec::new())?;
+    table_batch(&MARKERS, fixed, Vec::new())
+}
+
+/// Writes one marker snapshot as `<dir>/period=<N>/part-0.parquet` (Hive partitioning, so
+/// polars, DuckDB and Arrow datasets read `<dir>` as one table). The `period` column is kept
+/// inside the file too, so a single file stands on its own. Returns the file's path.
+pub fn write_markers(dir: &Path, scene: &Scene, t: MarkerSnapshot) -> Result<PathBuf, OutputError> {
+    let period = t.period;
+    write_marker_chunks(dir, scene, period, std::iter::once(t))
+}
+
+/// [`write_markers`] of the snapshot of `period` given as consecutive chunks of its rows
+/// (at least one, which may be empty), each written as it comes (with chunks of
+/// [`PART_ROWS`] rows, the file [`write_markers`] writes from the whole snapshot).
+pub fn write_marker_chunks(
+    dir: &Path,
+    scene: &Scene,
+    period: i64,
+    chunks: impl Iterator<Item = MarkerSnapshot>,
+) -> Result<PathBuf, OutputError> {
+    let part = dir.join(format!("period={period}"));
+    fs::create_dir_all(&part).map_err(|source| OutputError::Io {
+        path: part.clone(),
+        source,
+    })?;
+    let path = part.join("part-0.parquet");
+    let batches = chunks.map(|t| markers_batch(scene, t).map_err(arrow_err(&path)));
+    write_batches(&path, batches)?;
     Ok(path)
+}
+
+/// Writes the drawn table of `run` as `path`, and with `hive` as a Hive dataset under
+/// `root` too; returns the files written. A table held whole ([`RunOutput::drawn`]) is
+/// moved into one batch that both are written from; the engine's drawn markers
+/// ([`RunOutput::end`]) are read a part at a time, for each file.
+pub fn write_drawn(
+    path: &Path,
+    root: &Path,
+    scene: &Scene,
+    run: &mut RunOutput,
+    hive: Option<&HiveLayout>,
+) -> Result<Vec<PathBuf>, OutputError> {
+    let mut written = vec![path.to_path_buf()];
+    if run.end.is_none() {
+        let batch = drawn_batch(scene, std::mem::take(&mut run.drawn)).map_err(arrow_err(path))?;
+        write_batch(path, &batch)?;
+        if let Some(layout) = hive {
+            written.extend(write_dataset(root, &batch, &scene.periods, layout)?);
+        }
+        return Ok(written);
+    }
+    let batches = run
+        .drawn_chunks(PART_ROWS)
+        .map(|t| drawn_batch(scene, t.into_owned()).map_err(arrow_err(path)));
+    write_batches(path, batches)?;
+    if let Some(layout) = hive {
+        written.extend(write_drawn_dataset(root, scene, run, layout)?);
+    }
+    Ok(written)
+}
+
+/// The drawn table of `run` as a Hive dataset under `root` ([`write_dataset`]): a table
+/// held whole is moved into one batch, the engine's drawn markers are read a row group at
+/// a time ([`write_dataset_with`]).
+pub fn write_drawn_dataset(
+    root: &Path,
+    scene: &Scene,
+    run: &mut RunOutput,
+    layout: &HiveLayout,
+) -> Result<Vec<PathBuf>, OutputError> {
+    let Some(end) = &run.end else {
+        let batch = drawn_batch(scene, std::mem::take(&mut run.drawn)).map_err(arrow_err(root))?;
+        return write_dataset(root, &batch, &scene.periods, layout);
+    };
+    let rows = |at: &[u32]| drawn_batch(scene, end.drawn_at(at)).map_err(arrow_err(root));
+    write_dataset_with(
+        root,
+        end.drawn_periods().map(Some),
+        &scene.periods,
+        layout,
+        rows,
+    )
 }
 
 /// Writes a whole run into `dir` (created if needed) and returns the files written, the
@@ -193,11 +270,12 @@ pub fn write_run(
 
 /// [`write_run`], and with `hive` also the extraction, imz, drawn, air_gap and surface
 /// tables as Hive-partitioned datasets under `<dir>/dataset/` (see
-/// [`dataset`](super::dataset)), from the same record batches as the flat files.
+/// [`dataset`](super::dataset)), from the same record batches as the flat files (the
+/// engine's drawn table: from the same rows, a part at a time).
 pub fn write_run_with(
     dir: &Path,
     scene: &Scene,
-    run: RunOutput,
+    mut run: RunOutput,
     manifest: &Manifest,
     hive: Option<&HiveLayout>,
 ) -> Result<Vec<PathBuf>, OutputError> {
@@ -208,39 +286,56 @@ pub fn write_run_with(
     let mut written = Vec::new();
 
     let path = |name: &str| dir.join(format!("{name}.parquet"));
-    let tables: [(&str, Result<RecordBatch, ArrowError>); 5] = [
-        ("extraction", extraction_batch(scene, run.extraction)),
-        ("imz", imz_batch(scene, run.imz)),
-        ("drawn", drawn_batch(scene, run.drawn)),
-        ("air_gap", air_gap_batch(run.air_gap)),
-        ("surface", surface_batch(run.surface)),
-    ];
-    for (name, batch) in tables {
+    let root = |name: &str| dir.join("dataset").join(name);
+    // One table at a time: its batch is made, written flat and as a dataset, and let go.
+    let table = |name: &str, batch: Result<RecordBatch, ArrowError>| {
         let p = path(name);
         let batch = batch.map_err(arrow_err(&p))?;
         write_batch(&p, &batch)?;
-        written.push(p);
+        let mut written = vec![p];
         if let Some(layout) = hive {
-            written.extend(write_dataset(
-                &dir.join("dataset").join(name),
-                &batch,
-                &scene.periods,
-                layout,
-            )?);
+            written.extend(write_dataset(&root(name), &batch, &scene.periods, layout)?);
         }
-    }
+        Ok::<_, OutputError>(written)
+    };
+    written.extend(table(
+        "extraction",
+        extraction_batch(scene, take(&mut run.extraction)),
+    )?);
+    written.extend(table("imz", imz_batch(scene, take(&mut run.imz)))?);
+    written.extend(write_drawn(
+        &path("drawn"),
+        &root("drawn"),
+        scene,
+        &mut run,
+        hive,
+    )?);
+    written.extend(table("air_gap", air_gap_batch(take(&mut run.air_gap)))?);
+    written.extend(table("surface", surface_batch(take(&mut run.surface)))?);
 
     let markers = dir.join("markers");
-    for snapshot in run.snapshots {
+    for snapshot in take(&mut run.snapshots) {
         written.push(write_markers(&markers, scene, snapshot)?);
     }
+    if let Some(end) = &run.end {
+        if let Some(period) = end.snapshot_period() {
+            let chunks = run
+                .snapshot_chunks(period, PART_ROWS)
+                .into_iter()
+                .flatten()
+                .map(Cow::into_owned);
+            written.push(write_marker_chunks(&markers, scene, period, chunks)?);
+        }
+    }
+    // The markers are written: let them go before the smaller tables.
+    run.end = None;
 
     if !run.stress.is_empty() {
-        written.extend(super::stress::write_stress(dir, run.stress)?);
+        written.extend(super::stress::write_stress(dir, take(&mut run.stress))?);
     }
 
     if !run.trace.trace_id.is_empty() {
-        written.push(super::trace::write_trace(dir, scene, run.trace)?);
+        written.push(super::trace::write_trace(dir, scene, take(&mut run.trace))?);
     }
 
     let path = dir.join("manifest.json");

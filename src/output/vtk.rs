@@ -177,10 +177,11 @@ pub fn write_vtk(
         .enumerate()
         .map(|(b, &id)| (id, b))
         .collect();
-    let markers = run
-        .snapshots
-        .iter()
-        .map(|s| (s.period, marker_data(blocks, &row_of, s)));
+    // One snapshot made whole at a time (the end one is read from the engine's markers).
+    let markers = run.snapshot_periods().into_iter().filter_map(|p| {
+        let s = run.snapshot(p)?;
+        Some((p, marker_data(blocks, &row_of, &s)))
+    });
     write_series(dir, "markers", markers, &mut written)?;
 
     let surface = periods.iter().filter_map(|&p| {
@@ -189,7 +190,10 @@ pub fn write_vtk(
     });
     write_series(dir, "surface", surface, &mut written)?;
 
-    written.push(write_file(&dir.join("iez.vtp"), iez_data(&run.drawn))?);
+    written.push(write_file(
+        &dir.join("iez.vtp"),
+        iez_data(&run.drawn_table()),
+    )?);
     written.push(write_file(&dir.join("blocks.vtr"), block_data(blocks))?);
     written.push(write_file(
         &dir.join("drawpoints.vtp"),

@@ -105,7 +105,7 @@ fn an_offset_lattice_samples_the_same_draw_from_other_sites() {
     let s = out.resolution.marker_spacing;
     let o = scene.blocks.origin;
     let phase = |x: f64, o: f64| ((x - o) / s - 0.5).rem_euclid(1.0);
-    let t = &out.drawn;
+    let t = out.drawn_table();
     assert!(!t.origin_x.is_empty());
     for k in 0..t.origin_x.len() {
         assert!((phase(t.origin_x[k], o[0]) - 0.3).abs() < 1e-6);
@@ -228,7 +228,8 @@ fn a_closed_volume_conserves_solids_between_the_imz_the_stagnant_ground_and_the_
     );
 
     // The markers inside the IMZ at the end weigh the IMZ's bulk at n1.
-    let snap = out.snapshots.last().unwrap();
+    let snaps = out.snapshot_tables();
+    let snap = snaps.last().unwrap();
     let inside: f64 = (0..snap.marker_id.len())
         .filter(|&k| snap.drawpoint[k] == u32::MAX)
         .filter(|&k| {

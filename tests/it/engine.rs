@@ -11,7 +11,7 @@ use caveflow::engine::{Engine, EngineError, MarkerState, RunOutput, WarningRule}
 use caveflow::model::synthetic::UniformBox;
 use caveflow::model::{Scenario, Scene};
 
-use crate::fixtures::{assert_identical, run, scenario};
+use crate::fixtures::{assert_identical, encoded, run, scenario};
 
 /// Sets a schedule of cumulative tonnes per period (same for every drawpoint).
 fn cumulative_schedule(scene: &mut Scene, cum: &[f64]) {
@@ -190,23 +190,19 @@ fn conservation_of_tonnes_and_markers() {
     // Markers: none lost or duplicated.
     let n_drawn: i64 = ex.markers.iter().sum();
     assert_eq!(
-        out.drawn.marker_id.len() as i64,
+        out.drawn_len() as i64,
         n_drawn,
         "drawn table vs extraction `markers`"
     );
     assert_eq!(b.markers_drawn as i64, n_drawn);
-    let drawn_ids: HashSet<i64> = out.drawn.marker_id.iter().cloned().collect();
-    assert_eq!(
-        drawn_ids.len(),
-        out.drawn.marker_id.len(),
-        "a marker was drawn twice"
-    );
+    let drawn_ids: HashSet<i64> = out.drawn_table().marker_id.iter().cloned().collect();
+    assert_eq!(drawn_ids.len(), out.drawn_len(), "a marker was drawn twice");
     let mass_of_block: Vec<f64> = (0..bm.len())
         .map(|k| bm.size.iter().product::<f64>() * bm.density[k] * (1.0 - bm.n0[k]))
         .collect();
     let block_row: HashMap<i64, usize> = (0..bm.len()).map(|k| (bm.id[k], k)).collect();
     let mut last_drawn = 0;
-    for snap in &out.snapshots {
+    for snap in &out.snapshot_tables() {
         let p = snap.period;
         // Ids (moving + drawn) strictly increasing: unique.
         assert!(
@@ -274,7 +270,8 @@ fn conservation_of_tonnes_and_markers() {
             );
         }
     }
-    let last = out.snapshots.last().unwrap();
+    let snaps = out.snapshot_tables();
+    let last = snaps.last().unwrap();
     assert_eq!(last.marker_id.len() as u64, b.markers_mobilised);
     let total_block_mass: f64 = mass_of_block.iter().sum();
     let mobilised_mass: f64 = last.mass.iter().sum();
@@ -291,7 +288,7 @@ fn conservation_of_tonnes_and_markers() {
     // those either way).
     let lat = Lattice::new(bm, s);
     let mut checked = 0;
-    for snap in &out.snapshots {
+    for snap in &out.snapshot_tables() {
         let p = snap.period;
         let ids: HashSet<i64> = snap.marker_id.iter().cloned().collect();
         for dp in 0..2u32 {
@@ -351,13 +348,8 @@ fn runs_are_deterministic_across_repeats_and_thread_counts() {
         "{} extraction rows, {} IMZ rows, {} drawn markers identical",
         a.extraction.tonnes.len(),
         a.imz.radius.len(),
-        a.drawn.marker_id.len()
+        a.drawn_len()
     );
-}
-
-/// Every byte of a run's output (bincode of the whole `RunOutput`, f64 bit for bit).
-fn encoded(o: &RunOutput) -> Vec<u8> {
-    bincode::serde::encode_to_vec(o, bincode::config::standard()).unwrap()
 }
 
 #[test]
@@ -590,7 +582,7 @@ fn isolated_base_angle_and_iez_inside_imz() {
     // IEZ ⊂ IMZ: every drawn marker started inside the final IMZ at its origin elevation
     // (material is mobilised only where a disk reaches, and disks never shrink); one
     // marker spacing of slack for the lattice.
-    let dr = &out.drawn;
+    let dr = out.drawn_table();
     assert!(!dr.marker_id.is_empty());
     let mut worst = f64::MIN;
     let (mut iez_w, mut iez_h) = (0.0f64, 0.0f64);
@@ -658,7 +650,8 @@ fn in_t2_drawdown_is_uniform_above_imz_overlap() {
     // flow again. Layers holding drawn markers are left out of the uniform side too (a
     // drawn marker's displacement stops at its origin height).
     let lat = Lattice::new(&scene.blocks, s);
-    let snap = out.snapshots.last().unwrap();
+    let snaps = out.snapshot_tables();
+    let snap = snaps.last().unwrap();
     let moved: HashMap<usize, (f64, bool)> = (0..snap.marker_id.len())
         .map(|k| {
             (
@@ -830,7 +823,7 @@ fn assert_finite(scene: &Scene, out: &RunOutput) {
         "radii: {:?}",
         out.imz.radius
     );
-    for s in &out.snapshots {
+    for s in &out.snapshot_tables() {
         for v in [&s.x, &s.y, &s.z, &s.shear_strain, &s.shear_work] {
             assert!(v.iter().all(|x| x.is_finite()));
         }
@@ -1231,7 +1224,8 @@ fn multi_rate_cadence_saves_steps_and_keeps_the_draw() {
     assert!(e > 0.0 && e < 0.00086, "{e}");
     // Every marker is up to date at the end: the final positions of the markers that are
     // in both runs agree to well under a marker spacing for nearly all of them.
-    let (a, b) = (on.snapshots.last().unwrap(), off.snapshots.last().unwrap());
+    let (on, off) = (on.snapshot_tables(), off.snapshot_tables());
+    let (a, b) = (on.last().unwrap(), off.last().unwrap());
     let pos: HashMap<i64, [f64; 3]> = (0..b.marker_id.len())
         .map(|i| (b.marker_id[i], [b.x[i], b.y[i], b.z[i]]))
         .collect();

@@ -310,8 +310,16 @@ pub fn bits(v: &[f64]) -> Vec<u64> {
     v.iter().map(|x| x.to_bits()).collect()
 }
 
-/// Compares two runs field by field, f64 bitwise.
+/// Every byte of a run's output, f64 bit for bit: bincode of the whole `RunOutput` with
+/// its drawn table and end snapshot made whole (`RunOutput::with_tables`).
+pub fn encoded(o: &RunOutput) -> Vec<u8> {
+    bincode::serde::encode_to_vec(o.clone().with_tables(), bincode::config::standard()).unwrap()
+}
+
+/// Compares two runs field by field, f64 bitwise (the drawn table and the snapshots made
+/// whole, `RunOutput::with_tables`).
 pub fn assert_identical(a: &RunOutput, b: &RunOutput, what: &str) {
+    let (a, b) = (&a.clone().with_tables(), &b.clone().with_tables());
     macro_rules! same {
         ($t:ident . $f:ident) => {
             assert_eq!(

@@ -37,7 +37,7 @@ fn assert_same_additions(a: &RunOutput, b: &RunOutput, what: &str) {
     ] {
         assert_eq!(bits(u), bits(v), "{what}: extraction {f} differs");
     }
-    for (s, t) in a.snapshots.iter().zip(&b.snapshots) {
+    for (s, t) in a.snapshot_tables().iter().zip(&b.snapshot_tables()) {
         for (u, v, f) in [
             (
                 &s.primary_frag_size,
@@ -108,7 +108,8 @@ fn turning_a_mechanism_off_gives_the_run_without_it() {
     let off2 = run(&scene_odd, &odd);
     assert_identical(&off, &off2, "both off, other constants");
     assert_same_additions(&off, &off2, "both off, other constants");
-    let snap = off.snapshots.last().unwrap();
+    let snaps = off.snapshot_tables();
+    let snap = snaps.last().unwrap();
     assert!(!snap.marker_id.is_empty());
     assert!(snap.frag_size.iter().all(|&d| d == 0.0083));
     assert!(snap.attrited.iter().all(|&w| w == 0.0));
@@ -143,7 +144,8 @@ fn turning_a_mechanism_off_gives_the_run_without_it() {
     // vacuous).
     let both = run(&scene, &with(true, true));
     let moved = |o: &RunOutput| {
-        let s = o.snapshots.last().unwrap();
+        let snaps = o.snapshot_tables();
+        let s = snaps.last().unwrap();
         (
             s.attrited.iter().filter(|&&w| w > 0.0).count(),
             s.percolated.iter().filter(|&&l| l > 0.0).count(),
@@ -199,7 +201,7 @@ fn drawn_at(out: &RunOutput) -> HashMap<i64, f64> {
     let cum: HashMap<(u32, i64), f64> = (0..ex.period.len())
         .map(|k| ((ex.drawpoint[k], ex.period[k]), ex.cum_tonnes[k]))
         .collect();
-    let d = &out.drawn;
+    let d = out.drawn_table();
     (0..d.marker_id.len())
         .map(|k| (d.marker_id[k], cum[&(d.drawpoint[k], d.period[k])]))
         .collect()
@@ -234,7 +236,8 @@ fn castro_fines_scene(groups: &[(&str, f64, [f64; 3])]) -> (Scene, Vec<Vec<usize
 fn group_stats(scene: &Scene, out: &RunOutput, rows: &[usize]) -> (f64, f64, f64, usize) {
     let at = drawn_at(out);
     let bm = &scene.blocks;
-    let snap = out.snapshots.last().unwrap();
+    let snaps = out.snapshot_tables();
+    let snap = snaps.last().unwrap();
     let last = snap.period;
     let disks: Vec<(f64, f64)> = (0..out.imz.radius.len())
         .filter(|&k| out.imz.period[k] == last)
@@ -384,7 +387,8 @@ struct PanelPeriod {
 
 fn panel(scene: &Scene, out: &RunOutput) -> Vec<PanelPeriod> {
     let ex = &out.extraction;
-    let snap = out.snapshots.last().unwrap();
+    let snaps = out.snapshot_tables();
+    let snap = snaps.last().unwrap();
     scene
         .periods
         .id

@@ -314,6 +314,7 @@ fn fake_run(scene: &Scene) -> RunOutput {
         stress: Vec::new(),
         trace: Default::default(),
         account: None,
+        end: None,
     }
 }
 

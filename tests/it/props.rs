@@ -220,13 +220,13 @@ fn check(scene: &Scene, out: &RunOutput, marker_mass: f64) -> Result<(), String>
     if !t.radius.iter().all(|r| r.is_finite() && *r >= 0.0) {
         return Err("an IMZ radius is negative or not finite".into());
     }
-    let d = &out.drawn;
+    let d = out.drawn_table();
     for v in [&d.origin_x, &d.origin_y, &d.origin_z, &d.mass, &d.frag_size] {
         if !v.iter().all(|x| x.is_finite()) {
             return Err("a drawn-marker value is not finite".into());
         }
     }
-    for s in &out.snapshots {
+    for s in &out.snapshot_tables() {
         for v in [
             &s.x,
             &s.y,
@@ -303,7 +303,7 @@ fn check(scene: &Scene, out: &RunOutput, marker_mass: f64) -> Result<(), String>
         })
         .collect();
     let mut last_drawn = 0;
-    for s in &out.snapshots {
+    for s in &out.snapshot_tables() {
         if !s.marker_id.windows(2).all(|w| w[0] < w[1]) {
             return Err(format!("period {}: duplicated marker id", s.period));
         }

@@ -9,7 +9,7 @@ use caveflow::engine::{MarkerState, RunOutput};
 use caveflow::model::synthetic::UniformBox;
 use caveflow::model::{Scenario, Scene};
 
-use crate::fixtures::run;
+use crate::fixtures::{encoded, run};
 
 /// h = 25 mm, markers 12.5 mm, 0.5 kg increments, rilling on or off.
 fn scenario(rilling: bool) -> Scenario {
@@ -135,7 +135,8 @@ fn a_drawpoint_under_a_free_surface_forms_a_crater_at_repose() {
     assert!((rim - top).abs() < 1e-9, "the rim moved: {rim}");
 
     // Rilling moves markers; it never makes or loses one, nor changes a mass.
-    let snap = on.snapshots.last().unwrap();
+    let snaps = on.snapshot_tables();
+    let snap = snaps.last().unwrap();
     let ids: HashSet<i64> = snap.marker_id.iter().cloned().collect();
     assert_eq!(ids.len(), snap.marker_id.len(), "a marker is duplicated");
     let m0 = snap.mass[0];
@@ -271,7 +272,7 @@ fn rilling_brings_high_grade_from_the_north_under_uncaved_ground() {
     );
     assert!(g_on > g_off + 0.01, "late grade {g_on} not above {g_off}");
     // The rilled markers drawn came from the north of the drawpoint, and rilled towards it.
-    let d = &on.drawn;
+    let d = on.drawn_table();
     let rilled: Vec<usize> = (0..d.marker_id.len())
         .filter(|&k| d.rill_distance[k] > 0.0)
         .collect();
@@ -281,7 +282,8 @@ fn rilling_brings_high_grade_from_the_north_under_uncaved_ground() {
     eprintln!("{} rilled markers drawn: mean origin y {mean_y:.3} m (drawpoint at -0.25), mean rill {mean_rill:.3} m", rilled.len());
     assert!(mean_y > -0.25);
     // No marker ever sits in ground that has not caved.
-    let snap = on.snapshots.last().unwrap();
+    let snaps = on.snapshot_tables();
+    let snap = snaps.last().unwrap();
     for k in 0..snap.x.len() {
         if snap.state[k] == MarkerState::Moving {
             let blk = scene
@@ -348,8 +350,7 @@ fn rilling_runs_are_identical_across_thread_counts() {
     // Rilling is a sequential pass in a fixed order, so the thread count cannot change it.
     let scene = boundary_scene(false);
     let sc = scenario(true);
-    let bytes =
-        |o: &RunOutput| bincode::serde::encode_to_vec(o, bincode::config::standard()).unwrap();
+    let bytes = encoded;
     let outs: Vec<Vec<u8>> = [1, 2]
         .iter()
         .map(|&n| {

@@ -334,7 +334,7 @@ fn refused_scenes_stop_with_the_rule_and_degraded_ones_warn() {
 
 /// Mean origin elevation of the drawn material (mass-weighted) and its count.
 fn drawn_origin(out: &RunOutput) -> (f64, usize) {
-    let d = &out.drawn;
+    let d = out.drawn_table();
     let m: f64 = d.mass.iter().sum();
     let z: f64 = d.origin_z.iter().zip(&d.mass).map(|(z, w)| z * w).sum();
     (z / m, d.mass.len())

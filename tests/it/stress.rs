@@ -14,7 +14,7 @@ use caveflow::model::synthetic::UniformBox;
 use caveflow::model::Scene;
 use caveflow::output::stress::{write_stress, write_stress_charts};
 
-use crate::fixtures::{read_parquet, run, scenario};
+use crate::fixtures::{encoded, read_parquet, run, scenario};
 
 /// IN-T4 / IN-T5 after Castro (2006): 3 × 3 drawpoints (120 mm openings) at `spacing` on the
 /// floor of a 3.6 × 2.6 × 3.3 m box of the Castro material (8.3 mm fragments, φ = 40°),
@@ -248,8 +248,7 @@ fn stress_switch_adds_fields_and_changes_nothing_else() {
     // Everything but the stress fields is identical, bit for bit (NaN included).
     let mut without = on.clone();
     without.stress.clear();
-    let bytes =
-        |o: &RunOutput| bincode::serde::encode_to_vec(o, bincode::config::standard()).unwrap();
+    let bytes = encoded;
     assert!(
         bytes(&without) == bytes(&off),
         "the stress switch changed other outputs"

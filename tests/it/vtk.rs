@@ -337,7 +337,7 @@ fn every_vtk_file_reads_back_with_the_runs_counts_and_the_documented_fields() {
             .map(|p| (p, format!("markers/markers_{p}.vtp")))
             .to_vec()
     );
-    assert_eq!(out.snapshots.len(), 3);
+    assert_eq!(out.snapshot_periods().len(), 3);
     let row_of: HashMap<i64, usize> = scene
         .blocks
         .id
@@ -345,7 +345,7 @@ fn every_vtk_file_reads_back_with_the_runs_counts_and_the_documented_fields() {
         .enumerate()
         .map(|(b, &id)| (id, b))
         .collect();
-    for s in &out.snapshots {
+    for s in &out.snapshot_tables() {
         let piece = poly(&dir.join(format!("markers/markers_{}.vtp", s.period)));
         let n = s.marker_id.len();
         eprintln!("markers period {}: {n} markers", s.period);
@@ -396,7 +396,7 @@ fn every_vtk_file_reads_back_with_the_runs_counts_and_the_documented_fields() {
     }
 
     // IEZ: a point per drawn marker, at its origin.
-    let d = &out.drawn;
+    let d = out.drawn_table();
     let piece = poly(&dir.join("iez.vtp"));
     eprintln!("iez: {} drawn markers", d.marker_id.len());
     assert!(d.marker_id.len() > 10);
@@ -530,7 +530,7 @@ fn vtks_own_readers_open_every_file() {
             IMZ_FIELDS.map(String::from).to_vec(),
         );
     }
-    for s in &out.snapshots {
+    for s in &out.snapshot_tables() {
         let n = s.marker_id.len();
         put(
             format!("markers/markers_{}.vtp", s.period),
@@ -550,7 +550,7 @@ fn vtks_own_readers_open_every_file() {
             vec![],
         );
     }
-    let n = out.drawn.marker_id.len();
+    let n = out.drawn_len();
     put(
         "iez.vtp".into(),
         n,

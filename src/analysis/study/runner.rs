@@ -1,6 +1,7 @@
 //! Running variants into the study's layout: one variant ([`run_variant`], what a remote
 //! task calls), or all of them on local worker threads ([`run_study`]), then the summary.
 
+use std::mem::take;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Mutex;
@@ -12,7 +13,9 @@ use super::plan::{Study, Variant};
 use super::summary::{write_summary, SummaryRow};
 use crate::engine::Engine;
 use crate::output::dataset::{write_dataset, HiveLayout};
-use crate::output::run::{air_gap_batch, drawn_batch, extraction_batch, imz_batch, surface_batch};
+use crate::output::run::{
+    air_gap_batch, extraction_batch, imz_batch, surface_batch, write_drawn_dataset,
+};
 use crate::output::{write_atomic, Manifest};
 
 /// The tables of every variant in the dataset.
@@ -159,7 +162,7 @@ pub fn run_variant(
         .map_err(|p| anyhow::anyhow!("variant {}: {}", v.name, p.join("\n")))?;
     let scene = &loaded.scene;
     let started = Instant::now();
-    let out = Engine::new(scene, &v.scenario)?
+    let mut out = Engine::new(scene, &v.scenario)?
         .with_trace(&loaded.trace)
         .run(progress);
     let wall_s = started.elapsed().as_secs_f64();
@@ -186,18 +189,25 @@ pub fn run_variant(
         scenario: v.name.clone(),
         ..HiveLayout::new(&on, &v.name, scene.periods.len()).expect("hive on")
     };
-    let tables = [
-        extraction_batch(scene, out.extraction),
-        imz_batch(scene, out.imz),
-        drawn_batch(scene, out.drawn),
-        air_gap_batch(out.air_gap),
-        surface_batch(out.surface),
-    ];
-    for (name, batch) in TABLES.iter().zip(tables) {
+    for name in TABLES {
         let root = layout.table_root(name);
-        let batch = batch.with_context(|| format!("{name} of variant {}", v.name))?;
+        // One table's batch at a time; the drawn table is read from the engine's markers a
+        // part at a time as it is written.
+        let batch = match name {
+            "extraction" => Some(extraction_batch(scene, take(&mut out.extraction))),
+            "imz" => Some(imz_batch(scene, take(&mut out.imz))),
+            "air_gap" => Some(air_gap_batch(take(&mut out.air_gap))),
+            "surface" => Some(surface_batch(take(&mut out.surface))),
+            _ => None,
+        };
+        let batch = batch
+            .transpose()
+            .with_context(|| format!("{name} of variant {}", v.name))?;
         remove_leftovers(&root, &v.name)?;
-        write_dataset(&root, &batch, &scene.periods, &hive)?;
+        match batch {
+            Some(batch) => write_dataset(&root, &batch, &scene.periods, &hive)?,
+            None => write_drawn_dataset(&root, scene, &mut out, &hive)?,
+        };
     }
     // Each table's partitions marked too, for readers that look for a `_SUCCESS` beside
     // them (Spark's convention; Parquet readers skip files named `_*`).

@@ -65,9 +65,13 @@ pub fn write_reports(
         extraction_report(scene, &run.extraction),
     )?;
     let traced = !run.trace.trace_id.is_empty();
-    for snap in &run.snapshots {
-        let p = snap.period;
-        write(format!("marker_report_{p}.txt"), marker_report(scene, snap))?;
+    for p in run.snapshot_periods() {
+        if let Some(snap) = run.snapshot(p) {
+            write(
+                format!("marker_report_{p}.txt"),
+                marker_report(scene, &snap),
+            )?;
+        }
         if traced {
             write(
                 format!("trace_report_{p}.txt"),
