@@ -4,7 +4,7 @@
 //! end-of-run snapshot read from the markers a range of rows at a time ([`EndMarkers`]).
 //!
 //! A table row is a marker's columns, in the order of the markers' ids, with its origin
-//! (from the lattice) and its block's id and porosity beside them ([`MarkerRows`]).
+//! (from the lattice) and its block's id and porosity beside them (`MarkerRows`).
 //!
 //! # Why the end tables are not made whole
 //! Made whole, the end snapshot and the drawn table copy every marker a second and a
