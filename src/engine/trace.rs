@@ -1,4 +1,4 @@
-//! Trace markers (MassFlow's trace points, issue 19): given points followed through the draw.
+//! Trace markers (MassFlow's trace points): given points followed through the draw.
 //!
 //! A trace point is a marker without mass. It starts in situ at its given position; it is
 //! mobilised (moving) at the first step that finds it inside a disk of a drawing IMZ, in
