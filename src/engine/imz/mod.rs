@@ -419,32 +419,45 @@ impl Imz {
         let r0 = self.geom.radius[0];
         let cycle = 0.0625 * PI * r0 * r0 * self.geom.h;
         let n = ((v0 / cycle).ceil() as usize).max(1);
-        (0..n).map(|_| self.pass(v0 / n as f64, g, p)).sum()
+        self.cycles(v0 / n as f64, n, g, p)
     }
 
-    /// One cycle: passes void `v0` up from the drawpoint through the disks; returns the
-    /// number of disks it passed through.
-    fn pass(&mut self, v0: f64, g: &Ground, p: &ImzParams) -> u64 {
-        let h = self.geom.h;
-        let mut v = v0;
-        let mut i = 0;
-        while v > 0.0 {
+    /// Passes `n` cycles of void `v` each up from the drawpoint; returns the disk-cycles
+    /// made (the disks each cycle's void passed through, summed).
+    ///
+    /// Disk by disk: disk i takes the cycles in their order, each with R_{i−1} as the disk
+    /// below was left by that same cycle. Those are all a disk's inputs (its own radius
+    /// and state carry over from the cycle before), so this is the same arithmetic as
+    /// passing each cycle up through every disk before the next, in another order.
+    fn cycles(&mut self, v: f64, n: usize, g: &Ground, p: &ImzParams) -> u64 {
+        // Per cycle, the void entering disk i and R_{i−1} after that cycle.
+        let mut void = vec![v; n];
+        let mut below = vec![self.r_open; n];
+        let mut made = 0;
+        for i in 0.. {
+            let Some(first) = void.iter().position(|&x| x > 0.0) else {
+                break;
+            };
             if i == self.disks() {
                 let axis = [self.geom.x, self.geom.y, self.z_mid(i)];
                 if !g.flowable(axis) {
                     // Under uncaved ground the void collects as an air gap. Above the top
                     // of the model lies the free surface: the void is the subsidence the
                     // markers make there, not air.
-                    if axis[2] < g.blocks.z_max() {
-                        self.air += v;
-                    } else {
-                        self.vented += v;
+                    let gap = axis[2] < g.blocks.z_max();
+                    for &x in void.iter().filter(|&&x| x > 0.0) {
+                        if gap {
+                            self.air += x;
+                        } else {
+                            self.vented += x;
+                        }
                     }
                     self.blocked = true;
-                    return i as u64;
+                    return made;
                 }
-                // The ground above has caved: the air gap stored at the top closes into it.
-                v += std::mem::take(&mut self.air);
+                // The ground above has caved: the air gap stored at the top closes into
+                // the first cycle to reach it.
+                void[first] += std::mem::take(&mut self.air);
                 self.geom.radius.push(0.0);
                 self.motion.push(DiskMotion::default());
                 self.stagnant.push(Stagnant {
@@ -454,69 +467,85 @@ impl Imz {
                 self.mobilised.push(Mobilised::default());
                 self.reach.push(f64::NAN);
             }
-            let r_below = if i == 0 {
-                self.r_open
-            } else {
-                self.geom.radius[i - 1]
-            };
-            self.motion[i].dv += v;
-            // The ring is paid for at the jump of the ground it gains: the jump is sampled
-            // again each time the disk has widened by `redilate` (a ring that set out into
-            // neighbours' dilated ground at a small mean jump would otherwise take the
-            // stagnant ground beyond them at that jump, nearly free).
-            let (mut rem, mut up, mut last) = (v, 0.0, None);
-            while rem > 0.0 {
-                self.refresh_stagnant(i, g, p);
-                let (d, phi, _) = self.props(i);
-                let slope = self.slope(i, phi);
-                let r_at = self.geom.radius[i];
-                let r = if self.stagnant[i].flow_frac > 0.0 {
-                    r_law_sloped(d, h, r_at, r_below, slope, p.q)
-                } else {
-                    0.0
-                };
-                if !(r > 0.0) {
-                    break;
+            for (x, r_below) in void.iter_mut().zip(&mut below) {
+                if *x > 0.0 {
+                    *x = self.pass(i, *x, *r_below, v, g, p);
+                    made += 1;
                 }
-                let jump = self.usable_jump(i, r_below, slope, g, p);
-                let st = self.stagnant[i];
-                let (f, eps) = (st.flow_frac, dilation(jump, st.n1));
-                if !(f > 0.0) {
-                    break;
-                }
-                let cap = self.cap(i, g, p);
-                let limit = (self.geom.radius[i] + p.redilate).min(cap);
-                let ring = Ring {
-                    r_now: (r_at, r),
-                    r_below,
-                    d,
-                    tan: slope,
-                    eps,
-                    f,
-                    limit,
-                    cap,
-                };
-                let (passed, left) = self.absorb(i, rem, &ring, p);
-                (up, rem, last) = (up + passed, left, Some(ring));
-                if self.geom.radius[i] >= cap {
-                    break;
-                }
+                *r_below = self.geom.radius[i];
             }
-            v = up + rem;
-            // The remainder of a cycle that has all but vanished is absorbed here, so the
-            // cycle ends and the void is conserved.
-            if let Some(ring) = last.filter(|_| v <= 1e-12 * v0) {
-                let k = PI * h * ring.eps * ring.f;
-                let r_i = self.geom.radius[i];
-                self.geom.radius[i] = (r_i * r_i + v / k).sqrt().min(ring.cap);
-                v = 0.0;
-            }
-            // What this disk did not absorb leaves through its top: into the disk above, or
-            // out of the IMZ (the free surface subsides, or an air gap opens).
-            self.motion[i].dv_out += v;
-            i += 1;
         }
-        i as u64
+        made
+    }
+
+    /// Disk i's part of one cycle of void `v0`: void `v` enters with the disk below at
+    /// R_{i−1} = `r_below`; returns the void that leaves through the disk's top.
+    fn pass(
+        &mut self,
+        i: usize,
+        mut v: f64,
+        r_below: f64,
+        v0: f64,
+        g: &Ground,
+        p: &ImzParams,
+    ) -> f64 {
+        let h = self.geom.h;
+        self.motion[i].dv += v;
+        // The ring is paid for at the jump of the ground it gains: the jump is sampled
+        // again each time the disk has widened by `redilate` (a ring that set out into
+        // neighbours' dilated ground at a small mean jump would otherwise take the
+        // stagnant ground beyond them at that jump, nearly free).
+        let (mut rem, mut up, mut last) = (v, 0.0, None);
+        while rem > 0.0 {
+            self.refresh_stagnant(i, g, p);
+            let (d, phi, _) = self.props(i);
+            let slope = self.slope(i, phi);
+            let r_at = self.geom.radius[i];
+            let r = if self.stagnant[i].flow_frac > 0.0 {
+                r_law_sloped(d, h, r_at, r_below, slope, p.q)
+            } else {
+                0.0
+            };
+            if !(r > 0.0) {
+                break;
+            }
+            let jump = self.usable_jump(i, r_below, slope, g, p);
+            let st = self.stagnant[i];
+            let (f, eps) = (st.flow_frac, dilation(jump, st.n1));
+            if !(f > 0.0) {
+                break;
+            }
+            let cap = self.cap(i, g, p);
+            let limit = (self.geom.radius[i] + p.redilate).min(cap);
+            let ring = Ring {
+                r_now: (r_at, r),
+                r_below,
+                d,
+                tan: slope,
+                eps,
+                f,
+                limit,
+                cap,
+            };
+            let (passed, left) = self.absorb(i, rem, &ring, p);
+            (up, rem, last) = (up + passed, left, Some(ring));
+            if self.geom.radius[i] >= cap {
+                break;
+            }
+        }
+        v = up + rem;
+        // The remainder of a cycle that has all but vanished is absorbed here, so the
+        // cycle ends and the void is conserved.
+        if let Some(ring) = last.filter(|_| v <= 1e-12 * v0) {
+            let k = PI * h * ring.eps * ring.f;
+            let r_i = self.geom.radius[i];
+            self.geom.radius[i] = (r_i * r_i + v / k).sqrt().min(ring.cap);
+            v = 0.0;
+        }
+        // What this disk did not absorb leaves through its top: into the disk above, or
+        // out of the IMZ (the free surface subsides, or an air gap opens).
+        self.motion[i].dv_out += v;
+        v
     }
 
     /// Fills void `v` entering disk i by the r-law, widening it up to `ring.limit`, and
@@ -738,9 +767,7 @@ mod tests {
             r_cap: 1.7,
         };
         let mut imz = Imz::new(0, 0.0, 0.0, 0.0, 0.025, 0.12);
-        for _ in 0..cycles {
-            imz.pass(v / cycles as f64, &g, &p);
-        }
+        imz.cycles(v / cycles as f64, cycles, &g, &p);
         imz
     }
 
