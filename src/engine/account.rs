@@ -88,6 +88,9 @@ pub struct Counters {
     pub hits: u64,
     /// Disk-cycles of IMZ growth: the disks a cycle of void passed through, summed.
     pub disk_cycles: u64,
+    /// Of them, those a disk took in one step with the draw's other cycles
+    /// (`Imz::pass_all`).
+    pub merged_cycles: u64,
     /// IMZ draws (one per drawing IMZ and update).
     pub imz_draws: u64,
     /// Markers engulfed.
@@ -150,7 +153,7 @@ impl Account {
         let per = |a: u64, b: u64| a as f64 / (b.max(1)) as f64;
         s.push_str(&format!(
             "updates {}; marker steps {} ({:.0} an update); candidate tests {} ({:.1} a step), hits {} ({:.1} a step); \
-             IMZ draws {}, disk-cycles {} ({:.0} a draw); markers engulfed {}, drawn {}\n",
+             IMZ draws {}, disk-cycles {} ({:.0} a draw, {:.0}% taken together); markers engulfed {}, drawn {}\n",
             c.updates,
             c.marker_steps,
             per(c.marker_steps, c.updates),
@@ -161,6 +164,7 @@ impl Account {
             c.imz_draws,
             c.disk_cycles,
             per(c.disk_cycles, c.imz_draws),
+            100.0 * per(c.merged_cycles, c.disk_cycles),
             c.engulfed,
             c.drawn,
         ));

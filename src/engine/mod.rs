@@ -532,13 +532,13 @@ impl<'a> Engine<'a> {
         let u = self.steps_done + 1;
         let cadence = self.cadence;
         self.charge(Phase::Grids, &mut t);
-        let disk_cycles: u64 = self
+        let passes: imz::Passes = self
             .imzs
             .par_iter_mut()
             .filter(|m| is_drawing[m.id])
             .map(|imz| {
                 imz.begin_interval();
-                let cycles = imz.draw(row[imz.id] / steps as f64, &ground, &params);
+                let passes = imz.draw(row[imz.id] / steps as f64, &ground, &params);
                 imz.finish_interval(&ground, &params);
                 markers::prepare(&mut imz.motion, imz.geom.h);
                 imz.drew_at = u;
@@ -546,7 +546,7 @@ impl<'a> Engine<'a> {
                     let dv = imz.motion.iter().map(|m| (m.dv, m.dv_out));
                     cadence::accumulate(&mut imz.windows, dv);
                 }
-                cycles
+                passes
             })
             .sum();
         self.charge(Phase::Growth, &mut t);
@@ -556,7 +556,8 @@ impl<'a> Engine<'a> {
         if let Some(a) = self.account.as_mut() {
             let c = &mut a.counters;
             c.updates += 1;
-            c.disk_cycles += disk_cycles;
+            c.disk_cycles += passes.made;
+            c.merged_cycles += passes.merged;
             c.imz_draws += drawing.len() as u64;
             c.engulfed += (self.markers.len() - before) as u64;
         }
