@@ -129,7 +129,7 @@ pub use geom::{ImzGeom, ImzGrid, Listing};
 pub use ground::{Ground, Stagnant};
 
 /// The most r may change over a draw for a disk to take all the draw's cycles in one
-/// step ([`Imz::pass_all`]), relative.
+/// step (`Imz::pass_all`), relative.
 pub const MERGE_TOLERANCE: f64 = 0.1;
 
 /// What a draw did ([`Imz::draw`]): disk-cycles, and of them those a disk took in one step
@@ -138,7 +138,7 @@ pub const MERGE_TOLERANCE: f64 = 0.1;
 pub struct Passes {
     /// Disk-cycles made: the disks each cycle's void passed through, summed.
     pub made: u64,
-    /// Of `made`, the disk-cycles taken together ([`Imz::pass_all`]).
+    /// Of `made`, the disk-cycles taken together (`Imz::pass_all`).
     pub merged: u64,
 }
 
@@ -428,6 +428,8 @@ impl Imz {
     /// cycle size: at a sixteenth the IMZ width is within ~2% of the small-cycle limit
     /// early in a draw (a quarter: ~5%), and less as the IMZ grows
     /// (`tests::growth_conserves_void_respects_the_base_angle_and_converges_with_cycle_size`).
+    /// A far disk, where r changes by at most [`MERGE_TOLERANCE`] over the draw, takes all
+    /// the cycles in one step (`Imz::pass_all`), nearer the small-cycle limit.
     ///
     /// Returns the disk-cycles made: the disks the cycles' void passed through, summed
     /// (`engine::account`).
