@@ -4,7 +4,10 @@
 //! exist in the tree as it is. Only code spans, fenced code and link targets are read, so
 //! prose is never taken for a path.
 
+use std::cell::RefCell;
+use std::collections::HashMap;
 use std::path::{Component, Path, PathBuf};
+use std::rc::Rc;
 
 /// The prefixes of the repository paths a page may name.
 const REPO_PREFIXES: [&str; 5] = ["src/", "tests/", "data/", "benches/", "schemas/"];
@@ -256,14 +259,28 @@ fn rust_paths(span: &str) -> Option<Vec<Vec<String>>> {
     Some(out)
 }
 
-/// The `.rs` files under `dir`, recursively, sorted.
+thread_local! {
+    /// The `.rs` files listed so far, by folder.
+    static LISTINGS: RefCell<HashMap<PathBuf, Vec<PathBuf>>> = RefCell::new(HashMap::new());
+}
+
+/// The `.rs` files under `dir`, recursively, sorted (listed once per thread).
 fn rs_files(dir: &Path) -> Vec<PathBuf> {
+    if let Some(l) = LISTINGS.with(|c| c.borrow().get(dir).cloned()) {
+        return l;
+    }
+    let l = list_rs_files(dir);
+    LISTINGS.with(|c| c.borrow_mut().insert(dir.to_path_buf(), l.clone()));
+    l
+}
+
+fn list_rs_files(dir: &Path) -> Vec<PathBuf> {
     let mut out = Vec::new();
     if let Ok(entries) = std::fs::read_dir(dir) {
         for e in entries {
             let p = e.unwrap().path();
             if p.is_dir() {
-                out.extend(rs_files(&p));
+                out.extend(list_rs_files(&p));
             } else if p.extension().is_some_and(|x| x == "rs") {
                 out.push(p);
             }
@@ -332,37 +349,53 @@ fn defines_item(text: &str, name: &str) -> bool {
         "mod",
         "macro_rules",
     ];
-    text.lines().any(|line| {
-        idents(line)
-            .windows(2)
-            .any(|w| w[1] == name && KEYWORDS.contains(&w[0]))
-    })
+    text.contains(name)
+        && text.lines().any(|line| {
+            line.contains(name)
+                && idents(line)
+                    .windows(2)
+                    .any(|w| w[1] == name && KEYWORDS.contains(&w[0]))
+        })
 }
 
 /// Whether `text` defines `name` as an item or as a member of one: a field (`name: T`) or
 /// a variant (`Name,`, `Name(..)`, `Name { .. }`).
 fn defines_member(text: &str, name: &str) -> bool {
-    defines_item(text, name)
-        || text.lines().any(|line| {
-            let mut l = line.trim_start();
-            if let Some(r) = l.strip_prefix("pub") {
-                l = r.trim_start();
-                if l.starts_with('(') {
-                    l = l.split_once(')').map_or("", |(_, r)| r).trim_start();
+    text.contains(name) && defines_item(text, name)
+        || text.contains(name)
+            && text.lines().any(|line| {
+                let mut l = line.trim_start();
+                if let Some(r) = l.strip_prefix("pub") {
+                    l = r.trim_start();
+                    if l.starts_with('(') {
+                        l = l.split_once(')').map_or("", |(_, r)| r).trim_start();
+                    }
                 }
-            }
-            l.strip_prefix(name).is_some_and(|rest| {
-                let rest = rest.trim_start();
-                (rest.starts_with(':') && !rest.starts_with("::"))
-                    || rest.starts_with([',', '(', '{'])
+                l.strip_prefix(name).is_some_and(|rest| {
+                    let rest = rest.trim_start();
+                    (rest.starts_with(':') && !rest.starts_with("::"))
+                        || rest.starts_with([',', '(', '{'])
+                })
             })
-        })
+}
+
+thread_local! {
+    /// The source files read so far: every path resolved reads the same files again.
+    static SOURCES: RefCell<HashMap<PathBuf, Rc<str>>> = RefCell::new(HashMap::new());
+}
+
+/// A source file's text, read once per thread ("" where it cannot be read).
+fn source(p: &Path) -> Rc<str> {
+    SOURCES.with(|c| {
+        c.borrow_mut()
+            .entry(p.to_path_buf())
+            .or_insert_with(|| std::fs::read_to_string(p).unwrap_or_default().into())
+            .clone()
+    })
 }
 
 fn any_file(files: &[PathBuf], f: impl Fn(&str) -> bool) -> bool {
-    files
-        .iter()
-        .any(|p| std::fs::read_to_string(p).is_ok_and(|t| f(&t)))
+    files.iter().any(|p| f(&source(p)))
 }
 
 /// Resolves the segments after a module: submodules while there are such files, then an
@@ -388,6 +421,20 @@ fn resolve_from(module: Module, rest: &[String]) -> bool {
 /// `markers::Bins`), a module of the integration tests (`tests/it/<name>.rs`), or a file
 /// that declares an inline `mod name`.
 fn first_segment_modules(root: &Path, name: &str) -> Vec<Module> {
+    thread_local! {
+        static FOUND: RefCell<HashMap<(PathBuf, String), Vec<Module>>> =
+            RefCell::new(HashMap::new());
+    }
+    let key = (root.to_path_buf(), name.to_string());
+    if let Some(m) = FOUND.with(|c| c.borrow().get(&key).cloned()) {
+        return m;
+    }
+    let found = find_first_segment_modules(root, name);
+    FOUND.with(|c| c.borrow_mut().insert(key, found.clone()));
+    found
+}
+
+fn find_first_segment_modules(root: &Path, name: &str) -> Vec<Module> {
     let src = root.join("src");
     let mut out: Vec<Module> = Vec::new();
     let mut dirs = vec![src.clone()];
@@ -402,11 +449,13 @@ fn first_segment_modules(root: &Path, name: &str) -> Vec<Module> {
     }
     out.extend(Module::at(&root.join("tests/it"), name));
     for file in rs_files(&src) {
-        let text = std::fs::read_to_string(&file).unwrap();
-        if text.lines().any(|l| {
-            let ids = idents(l);
-            ids.windows(2).any(|w| w[0] == "mod" && w[1] == name) && l.contains('{')
-        }) {
+        let text = source(&file);
+        if text.contains(name)
+            && text.lines().any(|l| {
+                let ids = idents(l);
+                ids.windows(2).any(|w| w[0] == "mod" && w[1] == name) && l.contains('{')
+            })
+        {
             out.push(Module { file, folder: None });
         }
     }
@@ -420,13 +469,14 @@ fn rust_path_resolves(root: &Path, segs: &[String]) -> bool {
     let first = &segs[0];
     if first.starts_with(|c: char| c.is_uppercase()) {
         return rs_files(&root.join("src")).iter().any(|file| {
-            let text = std::fs::read_to_string(file).unwrap();
-            let is_type = text.lines().any(|l| {
-                idents(l).windows(2).any(|w| {
-                    w[1] == first.as_str()
-                        && ["struct", "enum", "trait", "type", "union"].contains(&w[0])
-                })
-            });
+            let text = source(file);
+            let is_type = text.contains(first.as_str())
+                && text.lines().any(|l| {
+                    idents(l).windows(2).any(|w| {
+                        w[1] == first.as_str()
+                            && ["struct", "enum", "trait", "type", "union"].contains(&w[0])
+                    })
+                });
             is_type && {
                 let files = rs_files(file.parent().unwrap());
                 segs[1..]
