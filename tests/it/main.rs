@@ -15,6 +15,7 @@ mod io;
 mod layering;
 mod massflow;
 mod mechanisms;
+mod newcomer;
 mod output;
 mod plan;
 mod props;
