@@ -315,6 +315,25 @@ fn refused_scenes_stop_with_the_rule_and_degraded_ones_warn() {
             && m.contains("0.1 m is wider than the smallest block dimension 0.05 m"),
         "{m}"
     );
+    // Degraded: markers 0.05 m apart in a 0.08 m opening (0.625 of it), with the
+    // drawpoint named; none at the tiny scene's own resolution.
+    let (mut scene, mut sc) = tiny(&baseline());
+    sc.flow.enforce_stability = true;
+    let plain = Engine::new(&scene, &sc).unwrap().run(&mut |_, _| {});
+    assert!(!plain
+        .warnings
+        .iter()
+        .any(|w| w.message.contains("marker-to-opening")));
+    scene.drawpoints.width[0] = 0.08;
+    sc.resolution.marker_spacing = Some(0.05);
+    let out = Engine::new(&scene, &sc).unwrap().run(&mut |_, _| {});
+    assert!(
+        out.warnings.iter().any(|w| w.message.contains(
+            "[marker-to-opening] degraded: drawpoint DP01: marker spacing 0.050 m is 0.62 of its 0.08 m opening (> 0.5)"
+        )),
+        "{:?}",
+        out.warnings
+    );
     // Degraded: fine fragments in a wide opening (summary §3.4) run, with the warning.
     let mut c = baseline();
     c.frag_to_width = 0.005;
