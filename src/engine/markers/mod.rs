@@ -87,16 +87,20 @@
 //! A marker that leaves the lowest disk is drawn, credited to the IMZ that moved it most.
 
 mod bins;
+mod disk_moves;
 mod lattice;
 mod motion;
+mod walls;
 
 use rayon::prelude::*;
 
 use super::cadence::Cadence;
 
 pub use bins::Bins;
+pub use disk_moves::{lateral, prepare, radial};
 pub use lattice::{Lattice, Rim};
-pub use motion::{lateral, prepare, radial, MotionField, Step, WallReach};
+pub use motion::{MotionField, Step};
+pub use walls::WallReach;
 
 /// Calls the macro `$m` with the names of every column of [`Markers`], so that what is done
 /// to each column (reorder, append, move a row) is written once and cannot miss one.
