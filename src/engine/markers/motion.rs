@@ -403,9 +403,10 @@ struct Base {
 
 #[cfg(test)]
 mod tests {
+    use super::super::super::imz::Profile;
     use super::super::disk_moves::tests::still_disks;
+    use super::super::prepare;
     use super::*;
-    use std::f64::consts::PI;
 
     /// Superposition: two IMZs on the same axis, each passing half the void, move every
     /// marker as one IMZ passing all of it, transfers at the disk bases included (each

@@ -124,8 +124,9 @@ impl MotionField<'_> {
 
 #[cfg(test)]
 mod tests {
+    use super::super::super::imz::{DiskMotion, ImzGrid};
     use super::super::disk_moves::tests::still_disks;
-    use super::super::Step;
+    use super::super::prepare;
     use super::*;
 
     /// A marker beside a wall whose IMZ narrows below it never leaves the model: where it
