@@ -10,7 +10,7 @@ use super::{
 };
 
 /// The most r may change over a draw for a disk to take all the draw's cycles in one
-/// step ([`Imz::pass_all`]), relative.
+/// step (`Imz::pass_all`), relative.
 pub const MERGE_TOLERANCE: f64 = 0.1;
 
 /// What a draw did ([`Imz::draw`]): disk-cycles, and of them those a disk took in one step
@@ -19,7 +19,7 @@ pub const MERGE_TOLERANCE: f64 = 0.1;
 pub struct Passes {
     /// Disk-cycles made: the disks each cycle's void passed through, summed.
     pub made: u64,
-    /// Of `made`, the disk-cycles taken together ([`Imz::pass_all`]).
+    /// Of `made`, the disk-cycles taken together (`Imz::pass_all`).
     pub merged: u64,
 }
 
