@@ -31,7 +31,8 @@
 //!   peak, at R_old, is ΔR_i (n1 − n0)/(1 − n1), the thickness the ring gains. The summary
 //!   prints the factor inverted, (1 − n1)/(n1 − n0); taken literally that moves a marker of
 //!   a new disk (R^old = 0) by ~3.7 R across the axis, and diverges as the porosity jump
-//!   vanishes, so we use the volume-balance form (`tests::radial_move_is_the_ring_dilation`).
+//!   vanishes, so we use the volume-balance form
+//!   (`disk_moves::tests::radial_move_is_the_ring_dilation`).
 //!   Ground widened into for free (already dilated by a neighbour) absorbs no void and is
 //!   not pushed. A new disk (R^old = 0) has no interior to push; its ring dilates by the
 //!   vertical move alone.
@@ -66,8 +67,8 @@
 //!   also moves each marker as its mirror image across that wall would, plan components
 //!   mirrored ([`MotionField::step`]). Along the wall the two cancel through it, so nothing
 //!   crosses, and the disk's flux, which the wall would cut, stays whole inside the model
-//!   (`tests::walls_mirror_the_imzs`). Dividing the moves by the flowable share A_f instead
-//!   keeps the volume but not where it goes: the transfers map each ray by the uncut
+//!   (`walls::tests::walls_mirror_the_imzs`). Dividing the moves by the flowable share A_f
+//!   instead keeps the volume but not where it goes: the transfers map each ray by the uncut
 //!   disk's shares, so the rays towards a wall let out more than they take in. On the
 //!   demo, whose IMZs widen across the whole model, the drawpoints next to the walls then
 //!   drew 0.85–0.95 of their schedule in markers and the row inside them 1.09–1.21; with
@@ -87,16 +88,20 @@
 //! A marker that leaves the lowest disk is drawn, credited to the IMZ that moved it most.
 
 mod bins;
+mod disk_moves;
 mod lattice;
 mod motion;
+mod walls;
 
 use rayon::prelude::*;
 
 use super::cadence::Cadence;
 
 pub use bins::Bins;
+pub use disk_moves::{lateral, prepare, radial};
 pub use lattice::{Lattice, Rim};
-pub use motion::{lateral, prepare, radial, MotionField, Step, WallReach};
+pub use motion::{MotionField, Step};
+pub use walls::WallReach;
 
 /// Calls the macro `$m` with the names of every column of [`Markers`], so that what is done
 /// to each column (reorder, append, move a row) is written once and cannot miss one.
