@@ -465,7 +465,7 @@ fn killed_run_resumes_to_identical_outputs() {
     assert!(!cut.join(CHECKPOINT).exists());
 }
 
-const CHECKPOINT: &str = caveflow::cli::CHECKPOINT_FILE;
+const CHECKPOINT: &str = caveflow::output::run_dir::CHECKPOINT_FILE;
 /// The small valid scene of the io tests, with one file replaced, in a folder with its
 /// scenario.toml.
 fn scene_dir(name: &str, bytes: &[u8]) -> tempfile::TempDir {
