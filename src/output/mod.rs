@@ -12,7 +12,8 @@
 //! - [`inputs`]: a [`Scene`](crate::model::Scene) written back as input tables and a scenario
 //!   file (used by `caveflow demo`).
 //! - [`records`]: production records (the demo's synthetic ones).
-//! - `charts`: PNG and SVG charts.
+//! - [`charts`]: PNG and SVG charts, and the sections and grade series they draw from a
+//!   run.
 //! - [`report`]: self-contained HTML report pages (`report.html` of a run; the look that
 //!   `reconcile` and `study` share).
 //! - [`dilution`]: the dilution entry per drawpoint.
@@ -34,7 +35,6 @@ pub mod charts;
 pub mod columns;
 pub mod dataset;
 pub mod dilution;
-pub mod figures;
 pub mod inputs;
 pub mod manifest;
 pub mod massflow;

@@ -2,7 +2,7 @@
 //! [`write_run_dir`] in this order (each file atomically):
 //!
 //! ```text
-//! <dir>/charts/…            outputs.charts: sections, grade, trace and stress charts (figures)
+//! <dir>/charts/…            outputs.charts: sections, grade, trace and stress charts (charts)
 //! <dir>/massflow/…          outputs.massflow: MassFlow's report layouts (output::massflow)
 //! <dir>/vtk/…               outputs.vtk: VTK files for ParaView (output::vtk)
 //! <dir>/report.html         outputs.report: the run report (output::report)
@@ -14,19 +14,21 @@
 //! [`checkpoint`]) is removed: the directory is complete. The scenario's `outputs` say
 //! where and what; the caller gives the run, its name and what the manifest records.
 //!
+//! - [`charts`]: which charts a run writes ([`write_run_charts`]);
 //! - [`checkpoint`]: when a run writes its checkpoint and what it belongs to
 //!   ([`Checkpoints`]).
 
+pub mod charts;
 pub mod checkpoint;
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+pub use self::charts::write_run_charts;
 pub use self::checkpoint::{remove_checkpoint, Checkpoints, CHECKPOINT_FILE};
 
 use super::charts::ChartError;
 use super::dataset::HiveLayout;
-use super::figures::write_run_charts;
 use super::report::{write_run_report, ReportError, RunReport};
 use super::{massflow, vtk, write_run_with, Manifest, OutputError};
 use crate::engine::result::RunOutput;
@@ -57,7 +59,7 @@ pub struct RunDir<'a> {
 pub struct Written {
     /// The tables, their datasets and the manifest ([`write_run_with`]).
     pub tables: Vec<PathBuf>,
-    /// The charts ([`write_run_charts`](super::figures::write_run_charts)).
+    /// The charts ([`write_run_charts`]).
     pub charts: Vec<PathBuf>,
     /// MassFlow's reports.
     pub massflow: Vec<PathBuf>,
