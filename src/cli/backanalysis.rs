@@ -95,8 +95,13 @@ pub struct CalibrateArgs {
 /// The scenario a run was made with, from its manifest.
 fn run_scenario(run_dir: &Path) -> Result<Scenario> {
     let path = run_dir.join("manifest.json");
-    let text = std::fs::read_to_string(&path)
-        .with_context(|| format!("{}: not a caveflow run directory", path.display()))?;
+    // A run directory that is not one is invalid input, like a missing scenario: exit 1.
+    let text = std::fs::read_to_string(&path).map_err(|e| {
+        UsageError(format!(
+            "{}: not a caveflow run directory: {e}",
+            path.display()
+        ))
+    })?;
     let v: serde_json::Value =
         serde_json::from_str(&text).with_context(|| path.display().to_string())?;
     let sc = v

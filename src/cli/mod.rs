@@ -14,7 +14,8 @@ use crate::model::demo::{self, DemoScale};
 use crate::model::load::{load_scene, InputFile, LoadedScene};
 use crate::model::scenario::ScenarioError;
 use crate::model::{Scenario, Scene};
-use crate::output::{self, Manifest};
+use crate::output;
+use crate::output::run_dir::{write_run_dir, Checkpoints, RunDir};
 use crate::schema;
 
 #[cfg(feature = "analysis")]
@@ -143,9 +144,6 @@ pub struct RunArgs {
     pub account: bool,
 }
 
-/// Name of the checkpoint file in the output directory.
-pub const CHECKPOINT_FILE: &str = "checkpoint.bin";
-
 /// `caveflow schema`.
 #[derive(Debug, Args)]
 pub struct SchemaArgs {
@@ -265,11 +263,27 @@ pub fn main() -> Result<ExitCode> {
                     .is_some()
                 || matches!(e.downcast_ref(), Some(EngineError::Refused(_))) =>
         {
-            eprintln!("error: {e:#}");
+            eprintln!("error: {}", error_text(&e));
             Ok(ExitCode::from(1))
         }
         r => r,
     }
+}
+
+/// An error as one line: its message, then each cause in turn that the text so far does
+/// not already hold (an error that names its cause in its own message and also gives it as
+/// its source would otherwise print the cause twice).
+pub fn error_text(e: &anyhow::Error) -> String {
+    let mut text = String::new();
+    for cause in e.chain().map(ToString::to_string) {
+        if text.is_empty() {
+            text = cause;
+        } else if !text.contains(&cause) {
+            text.push_str(": ");
+            text.push_str(&cause);
+        }
+    }
+    text
 }
 
 /// The scenario from the arguments: a file plus overrides, or defaults plus the tables
@@ -419,30 +433,31 @@ fn run(a: RunArgs) -> Result<ExitCode> {
         return Ok(ExitCode::from(1));
     }
     let scene = &loaded.scene;
-    let dir = &sc.outputs.dir;
     let mut inputs = loaded.inputs.clone();
     if let Some(path) = &a.input.scenario {
         inputs
             .push(InputFile::new("scenario", path, 0).with_context(|| path.display().to_string())?);
     }
-    // A checkpoint belongs to these inputs and this scenario only.
-    let tag = {
-        let mut text = serde_json::to_string(&sc).context("scenario")?;
-        for f in &loaded.inputs {
-            text.push_str(&f.sha256);
-        }
-        text.push_str(&format!("keep_periods={:?}", a.keep_periods));
-        crate::io::sha256_hex(text.as_bytes())
+    let mut checkpoints = Checkpoints::new(
+        &sc,
+        &loaded.inputs,
+        a.keep_periods,
+        a.checkpoint_every,
+        a.checkpoint_minutes,
+    );
+    let resumed = if a.resume {
+        checkpoints
+            .resume(scene, &sc)
+            .with_context(|| checkpoints.path().display().to_string())?
+    } else {
+        None
     };
-    let checkpoint = dir.join(CHECKPOINT_FILE);
-    let (engine, first) = match std::fs::File::open(&checkpoint) {
-        Ok(file) if a.resume => {
-            let (e, next) = Engine::resume_from(scene, &sc, std::io::BufReader::new(file), &tag)
-                .with_context(|| checkpoint.display().to_string())?;
+    let (engine, first) = match resumed {
+        Some((e, next)) => {
             eprintln!("resuming at period {} of {}", next + 1, scene.periods.len());
             (e, next)
         }
-        _ => (Engine::new(scene, &sc)?.with_trace(&loaded.trace), 0),
+        None => (Engine::new(scene, &sc)?.with_trace(&loaded.trace), 0),
     };
     let engine = if a.account {
         engine.keep_account()
@@ -452,65 +467,17 @@ fn run(a: RunArgs) -> Result<ExitCode> {
     let engine_started = Instant::now();
     let bar = progress(scene.periods.len() as u64, "periods");
     bar.set_position(first as u64);
-    let (every, minutes) = (a.checkpoint_every, a.checkpoint_minutes);
-    let mut last = std::time::Instant::now();
+    let periods = scene.periods.len();
     let out = on_pool(|| {
         engine.run_from(
             first,
             &mut |done, _| bar.set_position(done as u64),
-            &mut |e: &Engine, next: usize| -> Result<()> {
-                let by_periods = every > 0 && next % every == 0;
-                let by_time = minutes > 0.0 && last.elapsed().as_secs_f64() >= 60.0 * minutes;
-                if (by_periods || by_time) && next < scene.periods.len() {
-                    std::fs::create_dir_all(dir).with_context(|| dir.display().to_string())?;
-                    output::write_atomic_with(&checkpoint, |w| e.write_checkpoint(w, next, &tag))?;
-                    last = std::time::Instant::now();
-                }
-                Ok(())
-            },
+            &mut |e: &Engine, next: usize| checkpoints.after_period(e, next, periods),
         )
     })?;
     bar.finish_and_clear();
     let engine_wall = engine_started.elapsed();
     let account = out.account.clone();
-    let command = std::env::args().collect::<Vec<_>>().join(" ");
-    let moments = scene.moments(&sc.outputs.section_periods);
-    let mut lap = Instant::now();
-    let mut outputs: Vec<(&str, f64)> = Vec::new();
-    let mut took = |what: &'static str, outputs: &mut Vec<(&str, f64)>| {
-        outputs.push((what, lap.elapsed().as_secs_f64()));
-        lap = Instant::now();
-    };
-    let charts = if sc.outputs.charts {
-        output::figures::write_run_charts(dir, scene, &out, None, &moments)?
-    } else {
-        Vec::new()
-    };
-    took("charts", &mut outputs);
-    let massflow = if sc.outputs.massflow {
-        output::massflow::write_reports(dir, scene, &out)?
-    } else {
-        Vec::new()
-    };
-    let vtk = if sc.outputs.vtk {
-        output::vtk::write_vtk(
-            &dir.join("vtk"),
-            scene,
-            &out,
-            &scene.vtk_periods(&sc.outputs),
-        )?
-    } else {
-        Vec::new()
-    };
-    took("MassFlow reports and VTK", &mut outputs);
-    let manifest = Manifest::new(
-        command,
-        &sc,
-        inputs,
-        &out,
-        rayon::current_num_threads(),
-        started.elapsed().as_secs_f64(),
-    );
     let b = out.balance.clone();
     for line in output::warnings::summary(&out.warnings) {
         eprintln!("warning: {line}");
@@ -521,27 +488,15 @@ fn run(a: RunArgs) -> Result<ExitCode> {
         .as_ref()
         .and_then(|p| p.file_stem())
         .map_or("run".to_string(), |s| s.to_string_lossy().into_owned());
-    let report = if sc.outputs.report {
-        let r = output::report::RunReport {
-            name: &name,
-            scene,
-            run: &out,
-            manifest: &manifest,
-            charts: &charts,
-            moments: &moments,
-        };
-        Some(output::report::write_run_report(dir, &r)?)
-    } else {
-        None
+    let dir = RunDir {
+        scene,
+        scenario: &sc,
+        name: &name,
+        command: std::env::args().collect::<Vec<_>>().join(" "),
+        inputs,
+        started,
     };
-    let hive = output::dataset::HiveLayout::new(&sc, &name, scene.periods.len());
-    took("report", &mut outputs);
-    let files = output::write_run_with(dir, scene, out, &manifest, hive.as_ref())?;
-    took("tables", &mut outputs);
-    // The outputs are complete: the checkpoint has served.
-    if checkpoint.exists() {
-        std::fs::remove_file(&checkpoint).with_context(|| checkpoint.display().to_string())?;
-    }
+    let written = write_run_dir(dir, out)?;
     println!(
         "drew {:.0} t of {:.0} t scheduled ({} markers drawn of {} mobilised) in {:.1} s",
         b.credited_tonnes,
@@ -552,16 +507,17 @@ fn run(a: RunArgs) -> Result<ExitCode> {
     );
     println!(
         "wrote {} files and {} charts to {}",
-        files.len() + massflow.len() + vtk.len() + usize::from(report.is_some()),
-        charts.len(),
-        dir.display()
+        written.files(),
+        written.charts.len(),
+        sc.outputs.dir.display()
     );
-    if let Some(page) = report {
+    if let Some(page) = &written.report {
         println!("report: {}", page.display());
     }
     if let Some(account) = account {
         let total = started.elapsed().as_secs_f64();
         eprint!("{}", account.report());
+        let outputs = &written.timings;
         let written: f64 = outputs.iter().map(|o| o.1).sum();
         let each: Vec<String> = outputs
             .iter()

@@ -221,3 +221,21 @@ pub fn write_dataset_with(
     }
     Ok(written)
 }
+
+/// Removes what a killed writer of `scenario` left under `root`: the hidden temporary and
+/// old partition directories (`.scenario=<name>.tmp-<pid>`, `.scenario=<name>.old-<pid>`)
+/// of [`write_dataset_with`].
+pub fn remove_leftovers(root: &Path, scenario: &str) -> Result<(), OutputError> {
+    let Ok(entries) = fs::read_dir(root) else {
+        return Ok(());
+    };
+    let tmp = format!(".scenario={scenario}.tmp-");
+    let old = format!(".scenario={scenario}.old-");
+    for e in entries.flatten() {
+        let n = e.file_name().to_string_lossy().into_owned();
+        if n.starts_with(&tmp) || n.starts_with(&old) {
+            fs::remove_dir_all(e.path()).map_err(io_err(&e.path()))?;
+        }
+    }
+    Ok(())
+}

@@ -2,14 +2,18 @@
 //!
 //! - [`parquet`]: atomic file writing ([`AtomicFile`], [`write_atomic`], [`write_atomic_with`])
 //!   and the one Parquet writer ([`write_parquet`]) that every table goes through.
-//! - [`run`]: a run directory — extraction report, IMZ geometry, drawn markers (IEZ),
-//!   partitioned marker states and the manifest ([`write_run`]).
+//! - [`run_dir`]: a run directory as `caveflow run` writes it — charts, MassFlow reports,
+//!   VTK, the report, the tables and the manifest — and the run's checkpoint
+//!   ([`run_dir::write_run_dir`]).
+//! - [`run`]: a run's tables — extraction report, IMZ geometry, drawn markers (IEZ),
+//!   partitioned marker states — and the manifest ([`write_run`]).
 //! - [`dataset`]: the run's tables as Hive-partitioned datasets (`outputs.hive`).
 //! - [`manifest`]: the run manifest (`manifest.json`).
 //! - [`inputs`]: a [`Scene`](crate::model::Scene) written back as input tables and a scenario
 //!   file (used by `caveflow demo`).
 //! - [`records`]: production records (the demo's synthetic ones).
-//! - `charts`: PNG and SVG charts.
+//! - [`charts`]: PNG and SVG charts, and the sections and grade series they draw from a
+//!   run.
 //! - [`report`]: self-contained HTML report pages (`report.html` of a run; the look that
 //!   `reconcile` and `study` share).
 //! - [`dilution`]: the dilution entry per drawpoint.
@@ -31,7 +35,6 @@ pub mod charts;
 pub mod columns;
 pub mod dataset;
 pub mod dilution;
-pub mod figures;
 pub mod inputs;
 pub mod manifest;
 pub mod massflow;
@@ -39,6 +42,7 @@ pub mod parquet;
 pub mod records;
 pub mod report;
 pub mod run;
+pub mod run_dir;
 pub mod stress;
 pub mod trace;
 pub mod vtk;

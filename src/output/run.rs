@@ -256,6 +256,53 @@ pub fn write_drawn_dataset(
     )
 }
 
+/// The tables of a run that are also written as Hive datasets, in the order written.
+pub const DATASET_TABLES: [&str; 5] = ["extraction", "imz", "drawn", "air_gap", "surface"];
+
+/// Writes the [`DATASET_TABLES`] of `run`, one table at a time (its batch is made, written
+/// and let go): each as `<flat>/<table>.parquet` when `flat` is given, and with `hive` as a
+/// Hive dataset under `root(table)` ([`write_dataset`]) from the same batch (the engine's
+/// drawn table: from the same rows, a part at a time). Takes the tables out of `run`;
+/// returns the files written.
+pub fn write_tables(
+    flat: Option<&Path>,
+    root: &dyn Fn(&str) -> PathBuf,
+    hive: Option<&HiveLayout>,
+    scene: &Scene,
+    run: &mut RunOutput,
+) -> Result<Vec<PathBuf>, OutputError> {
+    let path = |name: &str| flat.map(|d| d.join(format!("{name}.parquet")));
+    // One table at a time: its batch is made, written flat and as a dataset, and let go.
+    let table = |name: &str, batch: Result<RecordBatch, ArrowError>| {
+        let (p, root) = (path(name), root(name));
+        let batch = batch.map_err(arrow_err(p.as_deref().unwrap_or(&root)))?;
+        let mut written = Vec::new();
+        if let Some(p) = p {
+            write_batch(&p, &batch)?;
+            written.push(p);
+        }
+        if let Some(layout) = hive {
+            written.extend(write_dataset(&root, &batch, &scene.periods, layout)?);
+        }
+        Ok::<_, OutputError>(written)
+    };
+    let mut written = table(
+        "extraction",
+        extraction_batch(scene, take(&mut run.extraction)),
+    )?;
+    written.extend(table("imz", imz_batch(scene, take(&mut run.imz)))?);
+    match (path("drawn"), hive) {
+        (Some(p), _) => written.extend(write_drawn(&p, &root("drawn"), scene, run, hive)?),
+        (None, Some(layout)) => {
+            written.extend(write_drawn_dataset(&root("drawn"), scene, run, layout)?)
+        }
+        (None, None) => {}
+    }
+    written.extend(table("air_gap", air_gap_batch(take(&mut run.air_gap)))?);
+    written.extend(table("surface", surface_batch(take(&mut run.surface)))?);
+    Ok(written)
+}
+
 /// Writes a whole run into `dir` (created if needed) and returns the files written, the
 /// manifest last. Consumes the run so its columns move into Arrow without a copy. No
 /// Hive datasets (see [`write_run_with`]).
@@ -283,35 +330,8 @@ pub fn write_run_with(
         path: dir.to_path_buf(),
         source,
     })?;
-    let mut written = Vec::new();
-
-    let path = |name: &str| dir.join(format!("{name}.parquet"));
     let root = |name: &str| dir.join("dataset").join(name);
-    // One table at a time: its batch is made, written flat and as a dataset, and let go.
-    let table = |name: &str, batch: Result<RecordBatch, ArrowError>| {
-        let p = path(name);
-        let batch = batch.map_err(arrow_err(&p))?;
-        write_batch(&p, &batch)?;
-        let mut written = vec![p];
-        if let Some(layout) = hive {
-            written.extend(write_dataset(&root(name), &batch, &scene.periods, layout)?);
-        }
-        Ok::<_, OutputError>(written)
-    };
-    written.extend(table(
-        "extraction",
-        extraction_batch(scene, take(&mut run.extraction)),
-    )?);
-    written.extend(table("imz", imz_batch(scene, take(&mut run.imz)))?);
-    written.extend(write_drawn(
-        &path("drawn"),
-        &root("drawn"),
-        scene,
-        &mut run,
-        hive,
-    )?);
-    written.extend(table("air_gap", air_gap_batch(take(&mut run.air_gap)))?);
-    written.extend(table("surface", surface_batch(take(&mut run.surface)))?);
+    let mut written = write_tables(Some(dir), &root, hive, scene, &mut run)?;
 
     let markers = dir.join("markers");
     for snapshot in take(&mut run.snapshots) {

@@ -1,7 +1,7 @@
 //! The trace points' outputs (`engine::trace`), written only when the run followed trace
 //! points: the table `<dir>/trace.parquet` (schema `trace`), one row per trace point per
-//! period, and the [`Section`] of their paths that `figures::write_run_charts` draws as
-//! `<dir>/charts/trace.png`.
+//! period, and the [`Section`] of their paths that `output::run_dir::write_run_charts`
+//! draws as `<dir>/charts/trace.png`.
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;

@@ -50,10 +50,10 @@
 //! period N: the disk's wall, a cylinder of the disk's radius from its base to its top,
 //! drawn through [`SEGMENTS`] points of its rim around the drawpoint's axis, [`SEGMENTS`]
 //! × 2 points). The wall is cut at the free surface of period N, as the sections cut the
-//! IMZ outlines (`output::figures::below_surface`): above the surface a disk holds the air
+//! IMZ outlines (`output::charts::below_surface`): above the surface a disk holds the air
 //! that left the IMZ's top, not moving rock. At each rim point the wall rises from the
 //! disk's base to its top or to the surface there, whichever is lower (the surface read by
-//! `output::figures::FreeSurface::at`, which on a lattice row is the section's surface); a
+//! `output::charts::FreeSurface::at`, which on a lattice row is the section's surface); a
 //! disk whose base lies at or above the surface at every rim point is not written, and one
 //! whose base the surface crosses is written as one strip per arc below the surface, each
 //! ending where the surface meets the base (two points more per arc, and a cell per arc
@@ -129,7 +129,7 @@ use vtkio::model::{
     RectilinearGridPiece, Version, VertexNumbers, Vtk,
 };
 
-use super::figures::FreeSurface;
+use super::charts::FreeSurface;
 use super::parquet::{write_atomic, AtomicFile};
 use super::OutputError;
 use crate::engine::result::{DrawnTable, ImzTable, MarkerSnapshot, RunOutput, SurfaceTable};

@@ -95,6 +95,64 @@ fn invalid_flags_exit_1_with_clap_message() {
     }
 }
 
+/// A missing scenario, study, records file or run directory is invalid input: exit 1 and
+/// one message that names the file and gives the cause once, nothing on stdout, nothing
+/// written.
+#[test]
+fn missing_files_are_named_with_their_cause_once() {
+    let tmp = tempfile::tempdir().unwrap();
+    let path = |name: &str| tmp.path().join(name).to_str().unwrap().to_string();
+    let (scenario, records, run_dir, out) = (
+        path("nonexist.toml"),
+        path("nonexist.csv"),
+        path("no-run"),
+        path("out"),
+    );
+    let cause = std::fs::read(&scenario).unwrap_err().to_string();
+    let o = out.as_str();
+    for (args, file) in [
+        (vec!["run", &scenario, "--out", o], &scenario),
+        (vec!["validate", &scenario], &scenario),
+        (vec!["sweep", &scenario, "--out", o], &scenario),
+        (vec!["study", &scenario, "--out", o], &scenario),
+        (
+            vec![
+                "calibrate",
+                &scenario,
+                "--records",
+                "data/records.csv",
+                "--out",
+                o,
+            ],
+            &scenario,
+        ),
+        (
+            vec![
+                "calibrate",
+                "data/scenario.toml",
+                "--records",
+                &records,
+                "--out",
+                o,
+            ],
+            &records,
+        ),
+        (vec!["reconcile", &run_dir, "data/records.csv"], &run_dir),
+    ] {
+        let got = caveflow()
+            .current_dir(env!("CARGO_MANIFEST_DIR"))
+            .args(&args)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&got.stderr);
+        assert_eq!(got.status.code(), Some(1), "{args:?}: {err}");
+        assert!(err.contains(file.as_str()), "{args:?}: {err}");
+        assert_eq!(err.matches(&cause).count(), 1, "{args:?}: {err}");
+        assert!(got.stdout.is_empty(), "{args:?}");
+    }
+    assert!(!Path::new(&out).exists(), "a missing file left {out}");
+}
+
 /// The embedded demo validates, and `validate` refuses a broken table with file, row,
 /// column and rule, exit code 1.
 #[test]
@@ -407,7 +465,7 @@ fn killed_run_resumes_to_identical_outputs() {
     assert!(!cut.join(CHECKPOINT).exists());
 }
 
-const CHECKPOINT: &str = caveflow::cli::CHECKPOINT_FILE;
+const CHECKPOINT: &str = caveflow::output::run_dir::CHECKPOINT_FILE;
 /// The small valid scene of the io tests, with one file replaced, in a folder with its
 /// scenario.toml.
 fn scene_dir(name: &str, bytes: &[u8]) -> tempfile::TempDir {

@@ -317,7 +317,7 @@ fn boundary_section_charts_with_and_without_rilling() {
             .unwrap_or_else(|| tmp.path().to_path_buf())
             .join(if rilling { "rilling_on" } else { "rilling_off" });
         let files =
-            caveflow::output::figures::write_run_charts(&dir, &scene, &out, Some(0.1), &[10])
+            caveflow::output::run_dir::write_run_charts(&dir, &scene, &out, Some(0.1), &[10])
                 .unwrap();
         let sections: Vec<_> = files
             .iter()

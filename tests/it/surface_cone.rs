@@ -9,7 +9,7 @@ use std::path::Path;
 use caveflow::engine::imz::r_law;
 use caveflow::engine::{Engine, RunOutput};
 use caveflow::model::{Scenario, Scene};
-use caveflow::output::figures::{drawdown_section, surface_at};
+use caveflow::output::charts::{drawdown_section, surface_at};
 
 use crate::fixtures::{cone_column as column, cone_scenario as scenario};
 

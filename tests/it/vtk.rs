@@ -7,7 +7,7 @@ use std::path::Path;
 
 use caveflow::engine::{ImzTable, RunOutput};
 use caveflow::model::{Scenario, Scene};
-use caveflow::output::figures::FreeSurface;
+use caveflow::output::charts::FreeSurface;
 use caveflow::output::vtk::{write_vtk, SEGMENTS};
 use quick_xml::events::Event;
 use vtkio::model::{
@@ -717,7 +717,7 @@ fn a_vtk_period_outside_the_schedule_is_refused_with_its_key_and_rule() {
 ///
 /// Tolerance: none. Each point is read back as the Float64 the writer computed, and the
 /// surface under it through the same `FreeSurface::at` (on a lattice row the sections'
-/// `surface_at`, a unit test of `output::figures`), so a point above the surface by any
+/// `surface_at`, a unit test of `output::charts`), so a point above the surface by any
 /// amount is one the export failed to cut.
 #[test]
 fn exported_imz_walls_stop_at_the_free_surface_of_their_period() {

@@ -1,7 +1,6 @@
 //! Running variants into the study's layout: one variant ([`run_variant`], what a remote
 //! task calls), or all of them on local worker threads ([`run_study`]), then the summary.
 
-use std::mem::take;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Mutex;
@@ -12,14 +11,12 @@ use anyhow::{Context, Result};
 use super::plan::{Study, Variant};
 use super::summary::{write_summary, SummaryRow};
 use crate::engine::Engine;
-use crate::output::dataset::{write_dataset, HiveLayout};
-use crate::output::run::{
-    air_gap_batch, extraction_batch, imz_batch, surface_batch, write_drawn_dataset,
-};
+use crate::output::dataset::{remove_leftovers, HiveLayout};
+use crate::output::run::write_tables;
 use crate::output::{write_atomic, Manifest};
 
 /// The tables of every variant in the dataset.
-pub const TABLES: [&str; 5] = ["extraction", "imz", "drawn", "air_gap", "surface"];
+pub use crate::output::run::DATASET_TABLES as TABLES;
 
 /// The marker of a complete variant, in its state directory; it holds the variant's hash.
 pub const SUCCESS: &str = "_SUCCESS";
@@ -116,23 +113,6 @@ pub enum Outcome {
     Ran(f64),
 }
 
-/// Removes what a killed writer of this variant left: hidden temporary and old partition
-/// directories (`.scenario=<name>.tmp-<pid>`, `.scenario=<name>.old-<pid>`).
-fn remove_leftovers(root: &Path, name: &str) -> Result<()> {
-    let Ok(entries) = std::fs::read_dir(root) else {
-        return Ok(());
-    };
-    let tmp = format!(".scenario={name}.tmp-");
-    let old = format!(".scenario={name}.old-");
-    for e in entries.flatten() {
-        let n = e.file_name().to_string_lossy().into_owned();
-        if n.starts_with(&tmp) || n.starts_with(&old) {
-            std::fs::remove_dir_all(e.path()).with_context(|| e.path().display().to_string())?;
-        }
-    }
-    Ok(())
-}
-
 /// Runs one variant into the layout unless it is complete. The order makes a kill at any
 /// point safe: the old `_SUCCESS` files go first, each table's partitions are swapped in
 /// whole (`output::dataset`) and marked with a `_SUCCESS` of their own, and the variant's
@@ -190,25 +170,15 @@ pub fn run_variant(
         ..HiveLayout::new(&on, &v.name, scene.periods.len()).expect("hive on")
     };
     for name in TABLES {
-        let root = layout.table_root(name);
-        // One table's batch at a time; the drawn table is read from the engine's markers a
-        // part at a time as it is written.
-        let batch = match name {
-            "extraction" => Some(extraction_batch(scene, take(&mut out.extraction))),
-            "imz" => Some(imz_batch(scene, take(&mut out.imz))),
-            "air_gap" => Some(air_gap_batch(take(&mut out.air_gap))),
-            "surface" => Some(surface_batch(take(&mut out.surface))),
-            _ => None,
-        };
-        let batch = batch
-            .transpose()
-            .with_context(|| format!("{name} of variant {}", v.name))?;
-        remove_leftovers(&root, &v.name)?;
-        match batch {
-            Some(batch) => write_dataset(&root, &batch, &scene.periods, &hive)?,
-            None => write_drawn_dataset(&root, scene, &mut out, &hive)?,
-        };
+        remove_leftovers(&layout.table_root(name), &v.name)?;
     }
+    write_tables(
+        None,
+        &|name: &str| layout.table_root(name),
+        Some(&hive),
+        scene,
+        &mut out,
+    )?;
     // Each table's partitions marked too, for readers that look for a `_SUCCESS` beside
     // them (Spark's convention; Parquet readers skip files named `_*`).
     for p in partitions.iter().filter(|p| p.is_dir()) {

@@ -7,9 +7,10 @@
 //! next to it) and registered with plotters once, so no system font library is needed. Every
 //! chart is written atomically (see `render`), so a reader never sees half a chart.
 //!
-//! The inputs, [`Section`] and [`GradeSeries`], are plain data. The engine-side callers fill
-//! them from the run outputs; [`imz_outline`] and [`iez_outline`] turn the IMZ disk table and
-//! the drawn markers' origins into the closed outlines a section draws.
+//! The inputs, [`Section`] and [`GradeSeries`], are plain data. [`run_sections`] and
+//! [`grade_series`] fill them from a run's outputs; [`imz_outline`] and [`iez_outline`] turn
+//! the IMZ disk table and the drawn markers' origins into the closed outlines a section
+//! draws. Which charts a run writes is `output::run_dir::charts`.
 //!
 //! One concept per file:
 //! - `font`: the bundled font, its metrics (`FontMetrics`) and glyph-by-glyph text;
@@ -19,8 +20,15 @@
 //!   to a file atomically;
 //! - `section`: drawdown sections ([`Section`], [`imz_outline`], [`iez_outline`],
 //!   [`section_chart`]);
+//! - `drawdown`: a run's drawdown sections, one per row of drawpoints ([`run_sections`],
+//!   [`drawdown_section`]);
+//! - `layers`: the deformed layers of a section, from a marker snapshot;
+//! - `free_surface`: the free surface by lattice row ([`FreeSurface`]) and the outlines cut
+//!   at it ([`below_surface`]);
 //! - `grade`: grade against cumulative tonnes in small multiples ([`GradeSeries`],
 //!   [`grade_tonnage_chart`]);
+//! - `grade_series`: a run's grade series and the uniform-drawdown block grade
+//!   ([`grade_series`], [`block_grade`]);
 //! - `plan_map`: drawpoints on a plan coloured by a value ([`plan_map_chart`]);
 //! - `histogram`: a distribution as bars with guide lines ([`histogram_chart`]);
 //! - `lines`: curves overlaid on shared axes with a legend ([`line_chart`]);
@@ -30,9 +38,13 @@
 //! page layout sizes.
 
 mod axes;
+mod drawdown;
 mod font;
+mod free_surface;
 mod grade;
+mod grade_series;
 mod histogram;
+mod layers;
 mod legend;
 mod lines;
 mod plan_map;
@@ -43,7 +55,12 @@ mod stability;
 pub mod stress;
 mod sweep;
 
+pub use self::drawdown::{
+    default_layer_spacing, drawdown_section, drawpoint_rows, run_sections, MAX_SECTIONS,
+};
+pub use self::free_surface::{below_surface, surface_at, FreeSurface};
 pub use self::grade::{grade_tonnage_chart, GradeSeries, MAX_PANELS};
+pub use self::grade_series::{block_grade, grade_series};
 pub use self::histogram::histogram_chart;
 pub use self::legend::fmt_mass;
 pub use self::lines::{line_chart, LineSeries};

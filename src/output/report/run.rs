@@ -51,7 +51,7 @@ pub struct RunReport<'a> {
     pub run: &'a RunOutput,
     /// Its manifest (inputs, version, time, resolution, balance).
     pub manifest: &'a Manifest,
-    /// The run charts written (`output::figures::write_run_charts`; empty without charts).
+    /// The run charts written (`output::run_dir::write_run_charts`; empty without charts).
     pub charts: &'a [PathBuf],
     /// The moments of the sections (`Scene::moments`).
     pub moments: &'a [i64],
