@@ -90,8 +90,9 @@ pub const MAX_STEPS: f64 = 1e8;
 /// Above this marker spacing over the opening width an opening disk holds fewer than
 /// about two markers across, and drawpoints run short of markers late in their draw: on
 /// the mine scene (`caveflow demo --scale mine`, 4 m openings) the drawpoints' markers
-/// over the last 5% of their tonnes weigh a median 0.948 of the schedule at 3.4 m markers (0.85 of
-/// the opening) against 0.963 at 1.65 m (0.41), and small draws at markers over about a
+/// over the last 5% of their tonnes weigh a median 0.948 of the schedule (drawpoints never
+/// short) at 3.4 m markers (0.85 of
+/// the opening) against 0.964 at 1.65 m (0.41), and small draws at markers over about a
 /// third of the opening end short (`tests/it/props.rs`). The demo's default, 1.9 m markers
 /// in 4 m openings (0.475), draws its schedule in markers at a median of 0.994.
 pub const MARKER_TO_OPENING_HIGH: f64 = 0.5;
