@@ -1,6 +1,6 @@
 //! The calibration problem and its runs: what one engine run of a calibration is
 //! ([`Trial`]), where the runs are made ([`Runs`]), and how a run's predictions become the
-//! errors the fit works on ([`Eval`], by [`reconcile`](crate::analysis::reconcile)).
+//! errors the fit works on (`Eval`, by [`reconcile`](crate::analysis::reconcile)).
 
 use std::collections::BTreeMap;
 
