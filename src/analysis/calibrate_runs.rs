@@ -17,12 +17,12 @@
 //! check's case carries its resolution as numbers, `[case_resolution.<case>]` (the one
 //! [`Problem::resolution`] gives), which the study runs as given: nothing resolves it
 //! again. A case's name is `run-` and 12 hex digits of the SHA-256 of its settings and
-//! resolution, so the same run has the same name in every batch and every calibration. Before each batch the study file is
-//! rewritten with every case so far; the runner skips the complete ones (by content hash,
-//! `analysis::study`, "Identity"). So a run asked twice (the joint fit's first centre is
-//! a run of the step before) is made once, and a calibration killed and started again
-//! makes none of the runs it completed: with the same inputs it writes the same
-//! `calibration.json` and runs nothing it ran before.
+//! resolution, so the same run has the same name in every batch and every calibration.
+//! Before each batch the study file is rewritten with every case so far; the runner skips
+//! the complete ones (by content hash, `analysis::study`, "Identity"). So a run asked twice
+//! (the joint fit's first centre is a run of the step before) is made once, and a
+//! calibration killed and started again makes none of the runs it completed: with the same
+//! inputs it writes the same `calibration.json` and runs nothing it ran before.
 //!
 //! Each run's extraction is read back from `dataset/extraction/study=calibrate/
 //! scenario=<case>/`, partitions in period order, rows in the order written: the frame the

@@ -52,8 +52,9 @@
 //! A variant is a pure function of its resolved scenario (and the resolution it carries,
 //! if any), its input files, its seed, the periods kept and the caveflow that runs it, and
 //! [`plan::variant_hash`] hashes exactly those: the scenario's JSON with input paths
-//! replaced by their roles and the output placement left out, the resolution carried, each input file's SHA-256 (as the run manifest and the checkpoint
-//! tag of `run` hash them), the seed, `keep_periods` when given, and caveflow's version
+//! replaced by their roles and the output placement left out, the resolution carried,
+//! each input file's SHA-256 (as the run manifest and the checkpoint tag of `run` hash
+//! them), the seed, `keep_periods` when given, and caveflow's version
 //! (`CARGO_PKG_VERSION`, [`plan::VERSION`]): a binary of another version runs every variant
 //! again rather than skip one an older binary computed. The same tables at another path
 //! give the same hash; one changed byte gives another.
