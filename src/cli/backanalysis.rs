@@ -9,6 +9,7 @@ use clap::Args;
 
 use super::{keep_periods, load, progress, scenario, InputArgs, UsageError};
 use crate::analysis::calibrate::{self, CalibrateConfig, Command};
+use crate::analysis::calibrate_runs::StudyRuns;
 use crate::analysis::reconcile::{self, records_frame, Frames, Settings};
 use crate::analysis::report::{write_report, ReportInfo};
 use crate::analysis::study::runner::default_threads;
@@ -244,17 +245,22 @@ pub(super) fn calibrate_cmd(a: CalibrateArgs) -> Result<ExitCode> {
     if let Some(c) = a.coarse {
         config.coarse = c;
     }
+    let runs = StudyRuns::new(
+        &a.out.join("runs"),
+        &sc,
+        a.keep_periods,
+        jobs,
+        a.threads.unwrap_or_else(|| default_threads(1)),
+        runner,
+    )?;
     let command = Command {
         scenario: &sc,
         scene,
         records: &records,
         grade,
         config,
-        keep_periods: a.keep_periods,
+        runs: &runs,
         out: &a.out,
-        jobs,
-        threads: a.threads.unwrap_or_else(|| default_threads(1)),
-        runner,
     };
     let bar = progress(0, "runs");
     let done = command.run(&mut |done, total| {
@@ -291,11 +297,10 @@ pub(super) fn calibrate_cmd(a: CalibrateArgs) -> Result<ExitCode> {
         report.model_noise,
         report.records_noise
     );
+    let (ran, reused) = runs.counts();
     println!(
-        "{} run(s) made, {} complete already in {}",
-        done.ran,
-        done.reused,
-        done.runs_dir.display()
+        "{ran} run(s) made, {reused} complete already in {}",
+        runs.dir().display()
     );
     for w in &done.warnings {
         eprintln!("warning: {w}");

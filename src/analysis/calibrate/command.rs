@@ -1,21 +1,22 @@
 //! `caveflow calibrate`'s work around the fit ([`calibrate`](super::calibrate())): the
-//! zones fitted by default, the records inside the periods kept, the runs made as a study
-//! ([`StudyRuns`]), the files written (`calibration.json`, `calibrated.toml`,
-//! `profiles.svg`) and the warnings the result calls for. The CLI parses the arguments,
-//! loads the inputs, calls [`Command::run`] and prints.
+//! zones fitted by default, the records inside the periods kept, the files written
+//! (`calibration.json`, `calibrated.toml`, `profiles.svg`) and the warnings the result
+//! calls for. The CLI parses the arguments, loads the inputs, makes the runs' study
+//! ([`StudyRuns`](crate::analysis::calibrate_runs::StudyRuns), which builds on this
+//! module's [`Runs`]), calls [`Command::run`] and prints.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use polars::prelude::{col, lit, DataFrame, IntoLazy};
 
-use super::{calibrate, CalibrateConfig, CalibrateError, CalibrationReport, Problem};
-use crate::analysis::calibrate_runs::StudyRuns;
+use super::{calibrate, CalibrateConfig, CalibrateError, CalibrationReport, Problem, Runs};
 use crate::analysis::reconcile::{drawpoints_frame, records_frame, ReconcileError};
 use crate::model::records::ProductionRecords;
 use crate::model::{Scenario, Scene};
 use crate::output::charts::{profile_chart, Profile};
 
-/// One `caveflow calibrate`: the inputs loaded, what to fit and where to run.
+/// One `caveflow calibrate`: the inputs loaded, what to fit, where the runs are made and
+/// where the files go.
 pub struct Command<'a> {
     /// The scenario; its `calibration` is the starting point.
     pub scenario: &'a Scenario,
@@ -27,28 +28,16 @@ pub struct Command<'a> {
     pub grade: String,
     /// What to fit; no zones fits [`default_zones`].
     pub config: CalibrateConfig,
-    /// Only the first N periods (`--keep-periods`; the runs keep as many).
-    pub keep_periods: Option<usize>,
-    /// The output directory: the files, and `runs/`, the runs' study.
+    /// Where the engine runs are made (`caveflow calibrate`: a study in `OUT/runs`).
+    pub runs: &'a dyn Runs,
+    /// The output directory of the files.
     pub out: &'a Path,
-    /// Runs made at once by the local runner.
-    pub jobs: usize,
-    /// Threads of each run.
-    pub threads: usize,
-    /// The external runner and its arguments (None: the local runner).
-    pub runner: Option<Vec<String>>,
 }
 
 /// What a calibration did.
 pub struct Outcome {
     /// The fit.
     pub report: CalibrationReport,
-    /// Runs made, and runs found complete in the runs' study.
-    pub ran: usize,
-    /// Runs found complete.
-    pub reused: usize,
-    /// The runs' study directory (`OUT/runs`).
-    pub runs_dir: PathBuf,
     /// What limits the result ([`warnings`]), one sentence each.
     pub warnings: Vec<String>,
 }
@@ -79,8 +68,8 @@ pub fn records_kept(
 }
 
 impl Command<'_> {
-    /// Fits, with the runs made as a study in `OUT/runs`, and writes the files into
-    /// `out`. `progress(done, total)` after each batch of runs.
+    /// Fits, and writes the files into `out`. `progress(done, total)` after each batch of
+    /// runs.
     pub fn run(
         self,
         progress: &mut (dyn FnMut(usize, usize) + Send),
@@ -91,21 +80,13 @@ impl Command<'_> {
         }
         let records = records_kept(self.records, self.scene)?;
         let drawpoints = drawpoints_frame(&self.scene.drawpoints)?;
-        let runs = StudyRuns::new(
-            &self.out.join("runs"),
-            self.scenario,
-            self.keep_periods,
-            self.jobs,
-            self.threads,
-            self.runner,
-        )?;
         let problem = Problem {
             scene: self.scene,
             scenario: self.scenario,
             records: &records,
             drawpoints: &drawpoints,
             grade: self.grade,
-            runs: &runs,
+            runs: self.runs,
         };
         let report = calibrate(&problem, &cfg, progress)?;
         std::fs::create_dir_all(self.out).map_err(|source| ReconcileError::Io {
@@ -114,13 +95,9 @@ impl Command<'_> {
         })?;
         write_calibration(self.out, &report, self.scenario)?;
         write_profiles(&self.out.join("profiles.svg"), &report)?;
-        let (ran, reused) = runs.counts();
         Ok(Outcome {
             warnings: warnings(&report),
             report,
-            ran,
-            reused,
-            runs_dir: runs.dir().to_path_buf(),
         })
     }
 }

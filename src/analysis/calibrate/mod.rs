@@ -8,7 +8,7 @@
 //! The code by concept: [`problem`] (a run of the calibration, where runs are made, a
 //! run's errors), [`fit`] (steps 1–3 below), [`uncertainty`] (step 4 and the standard
 //! errors) and [`command`] (`caveflow calibrate`'s work around the fit: its defaults, its
-//! runs as a study, its files and warnings). What the fit gives on the demo and on the
+//! files and warnings). What the fit gives on the demo and on the
 //! tests' three-zone truth is in `docs::validation`, "Back-analysis".
 //!
 //! # What is fitted
