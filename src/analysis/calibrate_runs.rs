@@ -12,16 +12,17 @@
 //! ```
 //!
 //! A run's case sets every `calibration` key (`calibration.frag_factor.<lithology>`,
-//! `n1_factor`, `friction_factor`), for the finer check the four `resolution` keys at the
-//! values [`Problem::resolution`] gives, and for the twin `resolution.lattice_offset`
-//! ([`Problem::lattice_offset`]), each float written to round-trip exactly. Its
-//! name is `run-` and 12 hex digits of the SHA-256 of those settings, so the same run has
-//! the same name in every batch and every calibration. Before each batch the study file is
-//! rewritten with every case so far; the runner skips the complete ones (by content hash,
-//! `analysis::study`, "Identity"). So a run asked twice (the joint fit's first centre is
-//! a run of the step before) is made once, and a calibration killed and started again
-//! makes none of the runs it completed: with the same inputs it writes the same
-//! `calibration.json` and runs nothing it ran before.
+//! `n1_factor`, `friction_factor`) and, for a twin, `resolution.lattice_offset`
+//! ([`Problem::lattice_offset`]), each float written to round-trip exactly. The finer
+//! check's case carries its resolution as numbers, `[case_resolution.<case>]` (the one
+//! [`Problem::resolution`] gives), which the study runs as given: nothing resolves it
+//! again. A case's name is `run-` and 12 hex digits of the SHA-256 of its settings and
+//! resolution, so the same run has the same name in every batch and every calibration.
+//! Before each batch the study file is rewritten with every case so far; the runner skips
+//! the complete ones (by content hash, `analysis::study`, "Identity"). So a run asked twice
+//! (the joint fit's first centre is a run of the step before) is made once, and a
+//! calibration killed and started again makes none of the runs it completed: with the same
+//! inputs it writes the same `calibration.json` and runs nothing it ran before.
 //!
 //! Each run's extraction is read back from `dataset/extraction/study=calibrate/
 //! scenario=<case>/`, partitions in period order, rows in the order written: the frame the
@@ -52,6 +53,7 @@ use super::reconcile::{predicted_of, read_parquet_frame};
 use super::study::runner::{run_study, Progress};
 use super::study::spec::StudyFile;
 use super::study::{Layout, Outcome, Study};
+use crate::engine::ResolvedResolution;
 use crate::model::scenario::Calibration;
 use crate::model::Scenario;
 use crate::output::write_atomic;
@@ -66,7 +68,7 @@ pub struct StudyRuns {
     jobs: usize,
     threads: usize,
     command: Option<Vec<String>>,
-    cases: Mutex<BTreeMap<String, Vec<String>>>,
+    cases: Mutex<BTreeMap<String, Case>>,
     ran: AtomicUsize,
     reused: AtomicUsize,
 }
@@ -153,10 +155,20 @@ impl StudyRuns {
 
     /// Writes the study file with every case so far.
     fn write_study(&self) -> Result<PathBuf, CalibrateError> {
+        let cases = self.cases.lock().expect("no panic holding it");
         let file = StudyFile {
             name: Some(STUDY.into()),
             scenario: "scenario.toml".into(),
-            cases: Some(self.cases.lock().expect("no panic holding it").clone()),
+            cases: Some(
+                cases
+                    .iter()
+                    .map(|(name, c)| (name.clone(), c.sets.clone()))
+                    .collect(),
+            ),
+            case_resolution: cases
+                .iter()
+                .filter_map(|(name, c)| Some((name.clone(), c.resolution?)))
+                .collect(),
             keep_periods: self.keep_periods,
             ..StudyFile::default()
         };
@@ -205,8 +217,16 @@ fn exact(x: f64) -> String {
     format!("{x:?}")
 }
 
-/// A run's case: its settings over the base scenario, and its name.
-fn case(p: &Problem, t: &Trial) -> Result<(String, Vec<String>), CalibrateError> {
+/// A run's case of the study: its settings over the base scenario and the resolution it
+/// runs at when not the one its scenario resolves to.
+#[derive(Debug, Clone)]
+struct Case {
+    sets: Vec<String>,
+    resolution: Option<ResolvedResolution>,
+}
+
+/// A run's case, and its name.
+fn case(p: &Problem, t: &Trial) -> Result<(String, Case), CalibrateError> {
     let c = &t.calibration;
     let mut sets: Vec<String> = c
         .frag_factor
@@ -218,17 +238,11 @@ fn case(p: &Problem, t: &Trial) -> Result<(String, Vec<String>), CalibrateError>
         "calibration.friction_factor={}",
         exact(c.friction_factor)
     ));
-    if t.finer != 1.0 {
-        let r = p.resolution(t)?;
-        for (key, v) in [
-            ("layer_thickness", r.layer_thickness),
-            ("marker_spacing", r.marker_spacing),
-            ("draw_increment", r.draw_increment),
-            ("max_marker_move", r.max_marker_move),
-        ] {
-            sets.push(format!("resolution.{key}={}", exact(v)));
-        }
-    }
+    let resolution = if t.finer != 1.0 {
+        Some(p.resolution(t)?)
+    } else {
+        None
+    };
     if t.lattice > 0 {
         let [x, y] = p.lattice_offset(t);
         sets.push(format!(
@@ -237,11 +251,15 @@ fn case(p: &Problem, t: &Trial) -> Result<(String, Vec<String>), CalibrateError>
             exact(y)
         ));
     }
-    let name = format!(
-        "run-{}",
-        &crate::io::sha256_hex(sets.join("\n").as_bytes())[..12]
-    );
-    Ok((name, sets))
+    let mut identity = sets.join("\n");
+    if let Some(r) = &resolution {
+        identity.push_str(&format!(
+            "\nresolution={}",
+            serde_json::to_string(r).map_err(runs_error)?
+        ));
+    }
+    let name = format!("run-{}", &crate::io::sha256_hex(identity.as_bytes())[..12]);
+    Ok((name, Case { sets, resolution }))
 }
 
 /// A run's predictions from the study's extraction dataset (module docs).
@@ -280,8 +298,8 @@ impl Runs for StudyRuns {
         {
             let mut cases = self.cases.lock().expect("no panic holding it");
             for t in trials {
-                let (name, sets) = case(p, t)?;
-                cases.insert(name.clone(), sets);
+                let (name, c) = case(p, t)?;
+                cases.insert(name.clone(), c);
                 names.push(name);
             }
         }

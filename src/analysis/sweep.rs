@@ -2,7 +2,8 @@
 //! default, each timed and compared with a converged reference run.
 //!
 //! A resolution is given as multipliers of the default one ([`resolution::resolve`]): of the
-//! disk thickness h, of the marker spacing and of the draw increment. Each point of the full
+//! disk thickness h, of the marker spacing and of the draw increment, applied by
+//! [`resolution::scaled`]. Each point of the full
 //! factorial grid is run once (or `repeats` times, keeping the median wall time), and so is
 //! the reference. The sweep runs the scene's whole schedule (`--keep-periods` shortens it):
 //! the early periods, before waste reaches any drawpoint, hide most of the error. The errors
@@ -144,23 +145,6 @@ pub enum SweepError {
     /// Drawing the chart failed.
     #[error(transparent)]
     Chart(#[from] ChartError),
-}
-
-/// The resolution `mult` times `default`; `max_marker_move` follows h and the spacing as
-/// the default rule does (`resolution::max_move_rule`), in proportion to the default's.
-fn times(default: &ResolvedResolution, mult: [f64; 3]) -> ResolvedResolution {
-    let (h, s) = (
-        default.layer_thickness * mult[0],
-        default.marker_spacing * mult[1],
-    );
-    let rule = |s: f64, h: f64| crate::engine::resolution::max_move_rule(s, h);
-    ResolvedResolution {
-        layer_thickness: h,
-        marker_spacing: s,
-        draw_increment: default.draw_increment * mult[2],
-        max_marker_move: default.max_marker_move * rule(s, h)
-            / rule(default.marker_spacing, default.layer_thickness),
-    }
 }
 
 /// Runs the scene at resolution `res` (`mult` times the default), `repeats` times; returns
@@ -369,7 +353,10 @@ pub fn sweep(
     if !grid.contains(&[1.0; 3]) {
         grid.push([1.0; 3]);
     }
-    let mut res: Vec<ResolvedResolution> = grid.iter().map(|&m| times(&default, m)).collect();
+    let mut res: Vec<ResolvedResolution> = grid
+        .iter()
+        .map(|&m| resolution::scaled(&default, m))
+        .collect();
     // The reference moves every marker at every update (no multi-rate cadence).
     res[0].max_marker_move = 0.0;
     // The automatic resolution, run as chosen (its multipliers are for the table).
@@ -398,7 +385,7 @@ pub fn sweep(
     ];
     let check_res = ResolvedResolution {
         max_marker_move: 0.0,
-        ..times(&default, check_mult)
+        ..resolution::scaled(&default, check_mult)
     };
     let total = grid.len() + 1;
     // The reference and its check, each run on the lattice and on its twin.

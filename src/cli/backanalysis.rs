@@ -6,17 +6,15 @@ use std::process::ExitCode;
 
 use anyhow::{Context, Result};
 use clap::Args;
-use polars::prelude::{col, lit, IntoLazy};
 
 use super::{keep_periods, load, progress, scenario, InputArgs, UsageError};
-use crate::analysis::calibrate::{self, CalibrateConfig, Problem};
+use crate::analysis::calibrate::{self, CalibrateConfig, Command};
 use crate::analysis::calibrate_runs::StudyRuns;
 use crate::analysis::reconcile::{self, records_frame, Frames, Settings};
 use crate::analysis::report::{write_report, ReportInfo};
 use crate::analysis::study::runner::default_threads;
 use crate::model::records::load_records;
 use crate::model::{Scenario, Scene};
-use crate::output::charts::{profile_chart, Profile};
 
 /// Exit code of a calibration whose fit did not lower the overall RMSE (1 is invalid
 /// input, 2 any other error).
@@ -231,44 +229,26 @@ pub(super) fn calibrate_cmd(a: CalibrateArgs) -> Result<ExitCode> {
     }
     let scene = &loaded.scene;
     let (_, grade) = grades(scene, &records.grade_names, &sc, a.grade.as_deref())?;
-    let zones = if a.zones.is_empty() {
-        scene
-            .blocks
-            .lithology_names
-            .iter()
-            .filter(|l| scene.drawpoints.zone.contains(l))
-            .cloned()
-            .collect()
-    } else {
-        a.zones
-    };
-    let mut cfg = CalibrateConfig {
-        zones,
+    let jobs = a.jobs.unwrap_or_else(|| default_threads(1));
+    let runner: Option<Vec<String>> = a
+        .runner
+        .as_deref()
+        .map(|c| c.split_whitespace().map(String::from).collect());
+    if jobs == 0 || a.threads == Some(0) || runner.as_ref().is_some_and(|c| c.is_empty()) {
+        return Err(UsageError(
+            "--jobs and --threads must be at least 1, and --runner a command".into(),
+        )
+        .into());
+    }
+    let mut config = CalibrateConfig {
+        zones: a.zones,
         fit_n1: a.fit_n1,
         fit_friction: a.fit_friction,
         lattices: a.lattices as usize,
         ..CalibrateConfig::default()
     };
     if let Some(c) = a.coarse {
-        cfg.coarse = c;
-    }
-    // Records past the last period kept are left out (dated ones simply find no match).
-    let last = scene.periods.id.last().copied().unwrap_or(0);
-    let records = records_frame(&records, &scene.drawpoints)?
-        .lazy()
-        .filter(col("period").is_null().or(col("period").lt_eq(lit(last))))
-        .collect()?;
-    let drawpoints = reconcile::drawpoints_frame(&scene.drawpoints)?;
-    let jobs = a.jobs.unwrap_or_else(|| default_threads(1));
-    let command: Option<Vec<String>> = a
-        .runner
-        .as_deref()
-        .map(|c| c.split_whitespace().map(String::from).collect());
-    if jobs == 0 || a.threads == Some(0) || command.as_ref().is_some_and(|c| c.is_empty()) {
-        return Err(UsageError(
-            "--jobs and --threads must be at least 1, and --runner a command".into(),
-        )
-        .into());
+        config.coarse = c;
     }
     let runs = StudyRuns::new(
         &a.out.join("runs"),
@@ -276,43 +256,24 @@ pub(super) fn calibrate_cmd(a: CalibrateArgs) -> Result<ExitCode> {
         a.keep_periods,
         jobs,
         a.threads.unwrap_or_else(|| default_threads(1)),
-        command,
+        runner,
     )?;
-    let problem = Problem {
-        scene,
+    let command = Command {
         scenario: &sc,
+        scene,
         records: &records,
-        drawpoints: &drawpoints,
         grade,
+        config,
         runs: &runs,
+        out: &a.out,
     };
     let bar = progress(0, "runs");
-    let report = calibrate::calibrate(&problem, &cfg, &mut |done, total| {
+    let done = command.run(&mut |done, total| {
         bar.set_length(total as u64);
         bar.set_position(done as u64);
     })?;
     bar.finish_and_clear();
-    std::fs::create_dir_all(&a.out).with_context(|| a.out.display().to_string())?;
-    calibrate::write_calibration(&a.out, &report, &sc)?;
-    let profiles: Vec<Profile> = report
-        .parameters
-        .iter()
-        .map(|f| Profile {
-            name: f.name.clone(),
-            points: f.profile.iter().map(|p| (p[0], p[1])).collect(),
-            fitted: f.value,
-            ci95: (f.ci95[0], f.ci95[1]),
-            start: f.start,
-        })
-        .collect();
-    profile_chart(
-        &a.out.join("profiles.svg"),
-        &profiles,
-        &format!(
-            "Calibration profiles: {} RMSE against each factor",
-            report.grade
-        ),
-    )?;
+    let report = &done.report;
     for f in &report.parameters {
         let mut res = if f.se_resolution.is_finite() {
             format!(
@@ -346,28 +307,8 @@ pub(super) fn calibrate_cmd(a: CalibrateArgs) -> Result<ExitCode> {
         "{ran} run(s) made, {reused} complete already in {}",
         runs.dir().display()
     );
-    if !report.resolution_adequate {
-        eprintln!(
-            "warning: the model's own noise at this resolution ({:.4}% {}) is not below the records' ({:.4}%): the fit cannot resolve what the records say; calibrate at a finer resolution (resolution.marker_spacing)",
-            report.model_noise, report.grade, report.records_noise
-        );
-    }
-    for f in &report.parameters {
-        let stat = (f.se * f.se - f.se_resolution.powi(2) - f.se_lattice.powi(2))
-            .max(0.0)
-            .sqrt();
-        if f.se_resolution > stat {
-            eprintln!(
-                "warning: {} moves by {:.3} between this resolution and a finer one, more than its statistical SE {stat:.3}: its value is limited by the resolution",
-                f.name, f.se_resolution
-            );
-        }
-        if f.se_lattice > stat {
-            eprintln!(
-                "warning: {}'s fits on the marker lattices leave its mean uncertain by {:.3}, more than its statistical SE {stat:.3}: its value is limited by the markers' sampling (a finer resolution narrows it)",
-                f.name, f.se_lattice
-            );
-        }
+    for w in &done.warnings {
+        eprintln!("warning: {w}");
     }
     if !report.lowered {
         eprintln!(

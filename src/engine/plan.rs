@@ -6,8 +6,9 @@
 //! ([`super::stability`]). [`RunPlan`] settles both, once: `validate`, `run`, `sweep` and
 //! `calibrate` all build one and hand it to [`Engine::with_plan`](super::Engine::with_plan),
 //! so what `validate` accepts is what `run` runs, and a sweep or a calibration runs at
-//! exactly the resolution it chose (it no longer writes its choice back into the scenario
-//! for the engine to resolve again).
+//! exactly the resolution it chose: the chosen numbers go to [`RunPlan::at`], in memory or
+//! through a study's case (`analysis::study`, `case_resolution`), never into the
+//! scenario's `resolution` keys to be resolved again.
 //!
 //! The defaults themselves are stated in one place, [`super::resolution`]; the scenario's
 //! keys point there.

@@ -139,6 +139,28 @@ pub fn max_move_rule(s: f64, h: f64) -> f64 {
     (MAX_MOVE_FRACTION * s).min(MAX_MOVE_OF_H * h)
 }
 
+/// Multipliers of a resolution: of h, of the marker spacing and of the draw increment.
+pub type Multipliers = [f64; 3];
+
+/// The resolution `mult` times `base` ([`Multipliers`]): h, marker spacing and increment
+/// scaled, and `max_marker_move` following h and the spacing as the default rule does
+/// ([`max_move_rule`]), in proportion to `base`'s. The one way a resolution is scaled: the
+/// speed–accuracy sweep's grid (`analysis::sweep`) and calibration's finer check
+/// (`analysis::calibrate`) both use it.
+pub fn scaled(base: &ResolvedResolution, mult: Multipliers) -> ResolvedResolution {
+    let (h, s) = (
+        base.layer_thickness * mult[0],
+        base.marker_spacing * mult[1],
+    );
+    ResolvedResolution {
+        layer_thickness: h,
+        marker_spacing: s,
+        draw_increment: base.draw_increment * mult[2],
+        max_marker_move: base.max_marker_move * max_move_rule(s, h)
+            / max_move_rule(base.marker_spacing, base.layer_thickness),
+    }
+}
+
 /// Default marker spacing as a fraction of the smallest block dimension: MassFlow's.
 pub const BLOCK_SPACING_FRACTION: f64 = 0.25;
 

@@ -239,6 +239,7 @@ pub struct TraceTable {
 
 /// Resolution actually used.
 #[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct ResolvedResolution {
     /// Disk thickness h, m.
     pub layer_thickness: f64,

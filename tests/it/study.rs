@@ -564,6 +564,69 @@ fn cases_are_variants_with_their_own_overrides() {
     assert!(periods.iter().all(|p| p == Some(2)));
 }
 
+/// `[case_resolution.<case>]`: a case runs at exactly the resolution it carries (the
+/// engine's plan takes the numbers as given), which its hash and the plan hold; a case
+/// without one runs at the resolution its scenario resolves to. A resolution of no case, a
+/// value out of range or a key that is not one are refused with their rule.
+#[test]
+fn a_case_runs_at_the_resolution_it_carries() {
+    let (tmp, path) = tiny_study("[cases]\nplain = [\"flow.q=3.0\"]\n");
+    let s = Study::expand(&path).unwrap();
+    let plain = &s.variants[0];
+    let loaded = plain.load().unwrap();
+    let resolved = plain.plan(&loaded.scene).unwrap().resolution();
+    assert_eq!(plain.resolution, None);
+    let r = caveflow::engine::resolution::scaled(&resolved, [0.8, 0.8, 1.0]);
+    let body = format!(
+        "[cases]\nplain = [\"flow.q=3.0\"]\nexact = [\"flow.q=3.0\"]\n[case_resolution.exact]\n{}",
+        toml::to_string(&r).unwrap()
+    );
+    let s = Study::expand(&study_file(tmp.path(), &body)).unwrap();
+    let (exact, plain) = (&s.variants[0], &s.variants[1]);
+    assert_eq!(exact.name, "exact");
+    assert_eq!(exact.resolution, Some(r));
+    assert_eq!(exact.scenario, plain.scenario);
+    assert_ne!(exact.hash, plain.hash);
+    assert_eq!(exact.plan(&loaded.scene).unwrap().resolution(), r);
+    assert_eq!(
+        s.plan_json()["variants"][0]["resolution"]["marker_spacing"],
+        r.marker_spacing
+    );
+    let layout = Layout::new(&tmp.path().join("out"), &s);
+    let report = run_study(&s, &layout, 1, 1, &Quiet).unwrap();
+    assert_eq!(report.ran.len(), 2, "{report:?}");
+    let manifest: serde_json::Value = serde_json::from_str(
+        &fs::read_to_string(layout.state("exact").join("manifest.json")).unwrap(),
+    )
+    .unwrap();
+    let ran: caveflow::engine::ResolvedResolution =
+        serde_json::from_value(manifest["resolution"].clone()).unwrap();
+    assert_eq!(ran, r);
+
+    for (extra, rule, key) in [
+        (
+            "[case_resolution.other]\nlayer_thickness = 1.0\nmarker_spacing = 1.0\ndraw_increment = 1.0\n",
+            "unknown-key",
+            "case_resolution.other",
+        ),
+        (
+            "[case_resolution.plain]\nlayer_thickness = 1.0\nmarker_spacing = -1.0\ndraw_increment = 1.0\n",
+            "setting-range",
+            "case_resolution.plain.marker_spacing",
+        ),
+        (
+            "[case_resolution.plain]\nlayer_thickness = 1.0\nmarker_spacing = 1.0\ndraw_increment = 1.0\nmax_marker_mov = 1.0\n",
+            "unknown-key",
+            "",
+        ),
+    ] {
+        let body = format!("[cases]\nplain = [\"flow.q=3.0\"]\n{extra}");
+        let e = Study::expand(&study_file(tmp.path(), &body)).unwrap_err();
+        assert!(e.has(rule), "{extra}: {e}");
+        assert!(e.0.iter().any(|p| p.key.contains(key)), "{extra}: {e}");
+    }
+}
+
 /// The variant hash covers caveflow's version, so that an upgraded binary skips no
 /// variant an older one computed, and the periods kept; the same inputs give the same hash.
 #[test]
@@ -572,7 +635,7 @@ fn the_variant_hash_covers_the_version_and_the_periods_kept() {
     let s = Study::expand(&path).unwrap();
     let v = &s.variants[0];
     assert_eq!(v.name, "base");
-    let hash = |keep, version| variant_hash(&v.scenario, &v.inputs, keep, version);
+    let hash = |keep, version| variant_hash(&v.scenario, None, &v.inputs, keep, version);
     assert_eq!(v.hash, hash(None, VERSION));
     assert_eq!(hash(None, "0.1.0"), hash(None, "0.1.0"));
     assert_ne!(hash(None, "0.1.0"), hash(None, "0.1.1"));

@@ -20,6 +20,13 @@
 //! [cases]                        # named variants, each its own overrides
 //! coarse = ["resolution.marker_spacing=3.8"]
 //! fine = ["resolution.marker_spacing=1.9", "flow.q=3.0"]
+//! exact = ["flow.q=3.0"]
+//!
+//! [case_resolution.exact]        # a case's resolution, run as given (not resolved)
+//! layer_thickness = 2.7
+//! marker_spacing = 1.35
+//! draw_increment = 68.4
+//! max_marker_move = 1.9
 //! ```
 //!
 //! The variants are the cartesian product of the grids (in key order), the alternative
@@ -35,13 +42,19 @@
 //! grids share it; a case's own name; `base` with no dimension at all). The summary has a
 //! column per grid key and per alternative dimension, and `case` for the cases.
 //!
+//! A case may carry its resolution as numbers (`[case_resolution.<case>]`: h, marker
+//! spacing, draw increment and `max_marker_move`): the variant then runs at exactly that
+//! resolution ([`Variant::plan`]) instead of the one its scenario resolves to, as
+//! `caveflow calibrate`'s finer check does. The resolution is part of the variant's hash.
+//!
 //! # Identity
 //!
-//! A variant is a pure function of its resolved scenario, its input files, its seed, the
-//! periods kept and the caveflow that runs it, and [`plan::variant_hash`] hashes exactly
-//! those: the scenario's JSON with input paths replaced by their roles and the output
-//! placement left out, each input file's SHA-256 (as the run manifest and the checkpoint
-//! tag of `run` hash them), the seed, `keep_periods` when given, and caveflow's version
+//! A variant is a pure function of its resolved scenario (and the resolution it carries,
+//! if any), its input files, its seed, the periods kept and the caveflow that runs it, and
+//! [`plan::variant_hash`] hashes exactly those: the scenario's JSON with input paths
+//! replaced by their roles and the output placement left out, the resolution carried,
+//! each input file's SHA-256 (as the run manifest and the checkpoint tag of `run` hash
+//! them), the seed, `keep_periods` when given, and caveflow's version
 //! (`CARGO_PKG_VERSION`, [`plan::VERSION`]): a binary of another version runs every variant
 //! again rather than skip one an older binary computed. The same tables at another path
 //! give the same hash; one changed byte gives another.

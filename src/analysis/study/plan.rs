@@ -7,10 +7,10 @@ use std::path::{Path, PathBuf};
 use serde_json::json;
 
 use super::spec::{StudyError, StudyFile, StudyProblems};
-use crate::engine::RunPlan;
+use crate::engine::{EngineError, ResolvedResolution, RunPlan};
 use crate::model::load::{load_scene, LoadedScene};
 use crate::model::scenario::ScenarioError;
-use crate::model::Scenario;
+use crate::model::{Scenario, Scene};
 use crate::output::dataset::partition_value;
 
 /// The input roles an alternative may swap, as `inputs.<role>` of the scenario.
@@ -50,6 +50,9 @@ pub struct Variant {
     pub values: Vec<(String, Swept)>,
     /// The resolved scenario.
     pub scenario: Scenario,
+    /// The resolution the variant runs at, as given (a case's `case_resolution`); None:
+    /// the one its scenario resolves to.
+    pub resolution: Option<ResolvedResolution>,
     /// Input role → (path, SHA-256).
     pub inputs: BTreeMap<String, (PathBuf, String)>,
     /// Only the first N periods (the study's `keep_periods`).
@@ -71,11 +74,13 @@ pub struct Study {
     pub variants: Vec<Variant>,
 }
 
-/// One option of a dimension: its label in variant names, its overrides and its value.
+/// One option of a dimension: its label in variant names, its overrides, its value and
+/// its resolution (a case's, when the study gives one).
 struct Choice {
     label: String,
     sets: Vec<String>,
     value: Swept,
+    resolution: Option<ResolvedResolution>,
 }
 
 /// Flattens `[grid]` into dotted keys; the leaves must be arrays.
@@ -194,6 +199,7 @@ impl Study {
                             toml::Value::Float(x) => Swept::Number(*x),
                             v => Swept::Text(label_value(v)),
                         },
+                        resolution: None,
                     }),
                     Err(e) => problems.push(scenario_problem(file, &format!("{skey} = {v}"), e)),
                 }
@@ -247,6 +253,7 @@ impl Study {
                     label: format!("{dim}-{alt}"),
                     sets,
                     value: Swept::Text(alt.clone()),
+                    resolution: None,
                 });
             }
             dims.push((dim.clone(), choices));
@@ -271,6 +278,7 @@ impl Study {
                         label: case.clone(),
                         sets: sets.clone(),
                         value: Swept::Text(case.clone()),
+                        resolution: spec.case_resolution.get(case).copied(),
                     }),
                     Err(e) => problems.push(scenario_problem(file, &ckey, e)),
                 }
@@ -284,6 +292,7 @@ impl Study {
                 "no cases: give at least one, or leave `[cases]` out",
             ));
         }
+        problems.extend(case_resolution_problems(file, &spec));
         if spec.keep_periods == Some(0) {
             problems.push(StudyError::new(
                 file,
@@ -308,6 +317,7 @@ impl Study {
                         label: format!("seed-{s}"),
                         sets: vec![format!("seed={s}")],
                         value: Swept::Number(*s as f64),
+                        resolution: None,
                     })
                     .collect();
                 dims.push(("seed".into(), choices));
@@ -333,9 +343,11 @@ impl Study {
             let mut sets = spec.set.clone();
             let mut labels = Vec::new();
             let mut values = Vec::new();
+            let mut resolution = None;
             for (d, (key, choices)) in dims.iter().enumerate() {
                 let c = &choices[pick[d]];
                 sets.extend(c.sets.iter().cloned());
+                resolution = resolution.or(c.resolution);
                 labels.push(c.label.clone());
                 if key != "seed" {
                     values.push((key.clone(), c.value.clone()));
@@ -376,7 +388,13 @@ impl Study {
                     )),
                 }
             }
-            let hash = variant_hash(&sc, &inputs, spec.keep_periods, VERSION);
+            let hash = variant_hash(
+                &sc,
+                resolution.as_ref(),
+                &inputs,
+                spec.keep_periods,
+                VERSION,
+            );
             variants.push(Variant {
                 name,
                 hash,
@@ -384,6 +402,7 @@ impl Study {
                 seed: sc.seed,
                 values,
                 scenario: sc,
+                resolution,
                 inputs,
                 keep_periods: spec.keep_periods,
             });
@@ -451,6 +470,7 @@ impl Study {
                     "hash": v.hash,
                     "sets": v.sets,
                     "seed": v.seed,
+                    "resolution": v.resolution,
                     "values": v.values.iter().map(|(k, x)| (k.clone(), json!(x))).collect::<serde_json::Map<_, _>>(),
                     "inputs": v.inputs.iter().map(|(r, (p, _))| (r.clone(), json!(p))).collect::<serde_json::Map<_, _>>(),
                     "input_sha256": v.inputs.iter().map(|(r, (_, h))| (r.clone(), json!(h))).collect::<serde_json::Map<_, _>>(),
@@ -490,8 +510,17 @@ impl Variant {
                 )]);
             }
         }
-        RunPlan::new(&loaded.scene, &self.scenario).map_err(|e| vec![e.to_string()])?;
+        self.plan(&loaded.scene).map_err(|e| vec![e.to_string()])?;
         Ok(loaded)
+    }
+
+    /// The variant's run plan on its loaded `scene`: at its own resolution when it carries
+    /// one ([`RunPlan::at`]), else at the one its scenario resolves to ([`RunPlan::new`]).
+    pub fn plan(&self, scene: &Scene) -> Result<RunPlan, EngineError> {
+        match self.resolution {
+            Some(r) => RunPlan::at(scene, &self.scenario, r),
+            None => RunPlan::new(scene, &self.scenario),
+        }
     }
 }
 
@@ -520,13 +549,15 @@ pub const VERSION: &str = env!("CARGO_PKG_VERSION");
 
 /// The content hash of a variant: SHA-256 of the resolved scenario's JSON with the input
 /// paths replaced by their roles and the output directory and scenario name left out (they
-/// place files, they change no result), then each input role's SHA-256, the seed, the
+/// place files, they change no result), then the resolution it carries (when it carries
+/// one, [`Variant::resolution`]), each input role's SHA-256, the seed, the
 /// periods kept (when not all) and `version`, caveflow's ([`VERSION`]): another version may
 /// compute another result, so a variant is never skipped for one an older binary made.
 /// The same tables under another path, or the study moved, give the same hash; one
 /// changed byte in a table gives another.
 pub fn variant_hash(
     sc: &Scenario,
+    resolution: Option<&ResolvedResolution>,
     inputs: &BTreeMap<String, (PathBuf, String)>,
     keep_periods: Option<usize>,
     version: &str,
@@ -542,6 +573,10 @@ pub fn variant_hash(
     s.outputs.scenario_name = None;
     s.outputs.charts = false;
     let mut text = serde_json::to_string(&s).expect("a scenario serialises");
+    if let Some(r) = resolution {
+        let r = serde_json::to_string(r).expect("a resolution serialises");
+        text.push_str(&format!("\nresolution={r}"));
+    }
     for (role, (_, sha)) in inputs {
         text.push_str(&format!("\n{role}={sha}"));
     }
@@ -551,4 +586,44 @@ pub fn variant_hash(
     }
     text.push_str(&format!("\ncaveflow={version}"));
     crate::io::sha256_hex(text.as_bytes())
+}
+
+/// The problems of `case_resolution`: an entry that names no case (`unknown-key`), a value
+/// that is not finite, h, spacing or increment not above 0, or `max_marker_move` below 0
+/// (`setting-range`).
+fn case_resolution_problems(file: &Path, spec: &StudyFile) -> Vec<StudyError> {
+    let mut problems = Vec::new();
+    for (case, r) in &spec.case_resolution {
+        let key = format!("case_resolution.{case}");
+        if !spec.cases.as_ref().is_some_and(|c| c.contains_key(case)) {
+            problems.push(StudyError::new(
+                file,
+                &key,
+                "unknown-key",
+                format!("`{case}` is not a case of `[cases]`: a resolution is given to a case"),
+            ));
+        }
+        for (name, v, least) in [
+            ("layer_thickness", r.layer_thickness, None),
+            ("marker_spacing", r.marker_spacing, None),
+            ("draw_increment", r.draw_increment, None),
+            ("max_marker_move", r.max_marker_move, Some(0.0)),
+        ] {
+            let ok = v.is_finite() && least.map_or(v > 0.0, |l| v >= l);
+            if !ok {
+                let rule = if least.is_some() {
+                    "at least 0"
+                } else {
+                    "above 0"
+                };
+                problems.push(StudyError::new(
+                    file,
+                    format!("{key}.{name}"),
+                    "setting-range",
+                    format!("{v} must be finite and {rule}"),
+                ));
+            }
+        }
+    }
+    problems
 }

@@ -142,7 +142,7 @@ pub fn run_variant(
         .map_err(|p| anyhow::anyhow!("variant {}: {}", v.name, p.join("\n")))?;
     let scene = &loaded.scene;
     let started = Instant::now();
-    let mut out = Engine::new(scene, &v.scenario)?
+    let mut out = Engine::with_plan(scene, &v.scenario, v.plan(scene)?)
         .with_trace(&loaded.trace)
         .run(progress);
     let wall_s = started.elapsed().as_secs_f64();

@@ -5,6 +5,8 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
+use crate::engine::ResolvedResolution;
+
 /// A study file as written: a base scenario, fixed overrides, and the dimensions whose
 /// cartesian product are the variants (see the [module docs](super)). Serialised, it is a
 /// study file again (what `caveflow calibrate` writes).
@@ -32,6 +34,12 @@ pub struct StudyFile {
     /// variants, where a grid's product does not fit: `caveflow calibrate`'s runs).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub cases: Option<BTreeMap<String, Vec<String>>>,
+    /// Resolutions of cases: case name → the resolution it runs at (`layer_thickness`,
+    /// `marker_spacing`, `draw_increment` and `max_marker_move`, numbers; the last 0 when
+    /// left out), used as given instead of the one its scenario resolves to
+    /// (`caveflow calibrate`'s finer check).
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub case_resolution: BTreeMap<String, ResolvedResolution>,
     /// Seeds: the scenario's `seed` of each repeat (default: the base scenario's seed only).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub seeds: Option<Vec<u64>>,
@@ -43,9 +51,10 @@ pub struct StudyFile {
 /// One problem with a study, displayed as `file: [rule] key: message`.
 ///
 /// Rules: `unreadable` (the study file), `toml-syntax`, `unknown-key` (in the study file or
-/// a grid, `set` or alternative key that is not a scenario key or input role),
-/// `wrong-type`, `setting-range` (a value out of range, by the scenario's own checks, or
-/// `keep_periods` below 1), `empty-grid` (a grid, alternative dimension, case list or seed
+/// a grid, `set` or alternative key that is not a scenario key or input role, or a
+/// `case_resolution` of no case), `wrong-type`, `setting-range` (a value out of range, by
+/// the scenario's own checks, `keep_periods` below 1, or a case resolution that is not
+/// positive and finite), `empty-grid` (a grid, alternative dimension, case list or seed
 /// list with nothing in it), `grid-not-array`, `bad-name` (a study, case or variant name
 /// that cannot name a directory, or
 /// two variants with one name), `missing-table` (an input table that does not exist),
