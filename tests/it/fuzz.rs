@@ -40,7 +40,7 @@ fn fuzz_regressions() {
 /// Every readable seed of the fuzz corpus, and a few hundred proptest-generated mutations
 /// of the test scene's files (random bytes spliced in, cut, duplicated), through every
 /// text reader and `load_scene`: each returns, Ok or a list of problems each with a rule.
-/// The coverage-guided runs are in the README; this keeps a short version in the suite.
+/// The coverage-guided runs are in `tests/fuzz/README.md`; this keeps a short version in the suite.
 #[test]
 fn random_bytes_through_every_reader() {
     use proptest::prelude::*;

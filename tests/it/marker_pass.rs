@@ -211,7 +211,7 @@ fn multi_rate_cadence_saves_steps_and_keeps_the_draw() {
     let credited = |o: &RunOutput| o.extraction.tonnes.iter().sum::<f64>();
     assert!((credited(&on) - credited(&off)).abs() <= 1e-9 * credited(&off));
     // Grades per drawpoint-period: the relative RMSE between the two runs is within the
-    // default resolution's own error against a converged run (0.086 %, README), i.e. the
+    // default resolution's own error against a converged run (0.086 %, `docs::validation`), i.e. the
     // cadence costs less accuracy than the marker spacing already does.
     let e = caveflow::analysis::sweep::grade_rmse(&on, &off);
     eprintln!("grade RMSE between the runs {:.4} %", 100.0 * e);

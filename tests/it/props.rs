@@ -19,10 +19,10 @@
 //! design (MassFlow's bounded correction; the air gap), and the run reports it.
 //! Markers are no coarser than a third of the narrowest opening: a first generator with
 //! markers up to h = 50 mm in 80 mm openings failed delivery by 10% (the opening disk held
-//! almost no marker); that is a resolution limit, noted in the README.
+//! almost no marker); that is a resolution limit, noted in `docs::physics`.
 //!
 //! The suite runs [`SUITE_CASES`] cases; `CAVEFLOW_PROP_CASES=N` runs N (the long run in
-//! the README used it).
+//! `docs::validation` used it).
 
 use std::collections::{HashMap, HashSet};
 use std::sync::atomic::{AtomicUsize, Ordering};

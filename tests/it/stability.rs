@@ -21,7 +21,7 @@
 //! The runs use `flow.enforce_stability = false`, so that refused points run too. Every
 //! valid point must be physical; what the others did is printed and charted
 //! (`cargo test --release stability:: -- --nocapture`). With `CAVEFLOW_DOCS=<dir>` the chart
-//! is also written to `<dir>/stability.png` (the README's copy is made that way).
+//! is also written to `<dir>/stability.png` (the copy in `docs::physics` is made that way).
 
 use std::path::Path;
 

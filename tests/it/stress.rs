@@ -257,7 +257,7 @@ fn stress_switch_adds_fields_and_changes_nothing_else() {
     assert!(on.stress[1].drawn_tonnes[0] > on.stress[0].drawn_tonnes[0]);
 }
 
-/// The `[stress]` section: defaults as documented in the README, `--set` for every key, and
+/// The `[stress]` section: defaults as documented in `docs::scenario`, `--set` for every key, and
 /// typos and out-of-range values rejected.
 #[test]
 fn stress_settings_parse_with_documented_defaults() {

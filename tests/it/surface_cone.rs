@@ -233,7 +233,7 @@ fn the_surface_cone_overflows_the_imz_and_outruns_it_in_the_far_field() {
                 r.depth
             );
         }
-        // Not asserted, measured and documented (README, validation): how fast rim and IMZ
+        // Not asserted, measured and documented (`docs::validation`): how fast rim and IMZ
         // grow once the crater overflows the IMZ's footprint, over the same span of draw in
         // units of m_b in both columns, and the share of the void that reaches the surface.
         let (rim_rate, imz_rate) = f.rates_after_overflow(2.0);
@@ -301,5 +301,5 @@ fn the_surface_cone_overflows_the_imz_and_outruns_it_in_the_far_field() {
     // rim. Since void vented through the top disk moves its markers (`engine::markers`), the
     // near-field crater is as wide relative to the IMZ as the far field's (rim/IMZ 1.38 and
     // 1.64 at 3× and 5× m_b, against 1.46 and 1.65), and its rim outgrows the IMZ faster
-    // after the overflow (5.5 against 2.6 times the IMZ's rate). See the README.
+    // after the overflow (5.5 against 2.6 times the IMZ's rate). See `docs::validation`.
 }

@@ -2,7 +2,7 @@
 //!
 //! Loaded from TOML; every key can also be set on the command line with
 //! `--set section.key=value`. Unknown keys are errors, so a typo never silently falls back
-//! to a default. Every default is documented here and in the README, with its reason.
+//! to a default. Every default is documented here and in `docs::scenario`, with its reason.
 
 use std::path::PathBuf;
 
