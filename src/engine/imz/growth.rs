@@ -138,9 +138,9 @@ impl Imz {
     }
 
     /// Disk i's part of every cycle of a draw in one step, where r changes by at most
-    /// `tolerance` ([`MERGE_TOLERANCE`] in a run) over the draw (with R_i and R_{i−1} as the draw leaves them) and
-    /// the disk widens within its sampled ground; `None` (nothing changed but the samples'
-    /// refresh that [`Imz::pass`] makes first) elsewhere.
+    /// `tolerance` ([`MERGE_TOLERANCE`] in a run) over the draw (with R_i and R_{i−1} as
+    /// the draw leaves them) and the disk widens within its sampled ground; `None` (nothing
+    /// changed but the samples' refresh that [`Imz::pass`] makes first) elsewhere.
     ///
     /// High in an IMZ a disk is wide, r is small and changes slowly: each cycle takes
     /// r v_c of the void, passes (1 − r) v_c up and widens the disk by a hair. There the
@@ -170,10 +170,9 @@ impl Imz {
         if !(st.flow_frac > 0.0 && jump > 0.0 && r0 > 0.0) {
             return None;
         }
-        let live = void.iter().filter(|&&x| x > 0.0);
         let first = below[void.iter().position(|&x| x > 0.0)?];
         let last = below[void.iter().rposition(|&x| x > 0.0)?];
-        let total: f64 = live.sum();
+        let total: f64 = void.iter().filter(|&&x| x > 0.0).sum();
         let k = PI * h * dilation(jump, st.n1) * st.flow_frac;
         let r_start = r_law_sloped(d, h, r0, first, slope, p.q);
         let grown = (r0 * r0 + r_start * total / k).sqrt();
