@@ -6,7 +6,7 @@ fn main() -> ExitCode {
     match caveflow::cli::main() {
         Ok(code) => code,
         Err(e) => {
-            eprintln!("error: {}", caveflow::cli::error_text(&e));
+            eprintln!("error: {}", caveflow::cli::error_text(e.as_ref()));
             ExitCode::from(2)
         }
     }

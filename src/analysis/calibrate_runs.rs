@@ -185,7 +185,7 @@ impl StudyRuns {
     fn run(&self, file: &Path, study: &Study, layout: &Layout) -> Result<(), CalibrateError> {
         let Some(cmd) = &self.command else {
             let report = run_study(study, layout, self.jobs, self.threads, &Quiet)
-                .map_err(|e| runs_error(format!("{e:#}")))?;
+                .map_err(|e| runs_error(crate::analysis::error_text(e.as_ref())))?;
             return match report.failed.first() {
                 Some((name, why)) => Err(runs_error(format!("run {name}: {why}"))),
                 None => Ok(()),
@@ -266,7 +266,7 @@ fn case(p: &Problem, t: &Trial) -> Result<(String, Case), CalibrateError> {
 fn read_back(layout: &Layout, name: &str, grades: &[String]) -> Result<DataFrame, CalibrateError> {
     let files = layout
         .partition_files("extraction", name)
-        .map_err(|e| runs_error(format!("{e:#}")))?;
+        .map_err(|e| runs_error(crate::analysis::error_text(e.as_ref())))?;
     let mut frame: Option<DataFrame> = None;
     for (f, period) in files {
         let mut df = read_parquet_frame(&f)?;

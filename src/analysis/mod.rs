@@ -40,3 +40,23 @@ pub mod records;
 pub mod report;
 pub mod study;
 pub mod sweep;
+
+/// An error as one line: its message, then each cause in turn that the text so far does
+/// not already hold (an error that names its cause in its own message and also gives it as
+/// its source would otherwise print the cause twice). The CLI prints its errors so, and a
+/// study or a calibration reports a failed run so.
+pub fn error_text(e: &(dyn std::error::Error + 'static)) -> String {
+    let mut text = String::new();
+    let mut next = Some(e);
+    while let Some(err) = next {
+        let cause = err.to_string();
+        if text.is_empty() {
+            text = cause;
+        } else if !text.contains(&cause) {
+            text.push_str(": ");
+            text.push_str(&cause);
+        }
+        next = err.source();
+    }
+    text
+}

@@ -263,28 +263,14 @@ pub fn main() -> Result<ExitCode> {
                     .is_some()
                 || matches!(e.downcast_ref(), Some(EngineError::Refused(_))) =>
         {
-            eprintln!("error: {}", error_text(&e));
+            eprintln!("error: {}", error_text(e.as_ref()));
             Ok(ExitCode::from(1))
         }
         r => r,
     }
 }
 
-/// An error as one line: its message, then each cause in turn that the text so far does
-/// not already hold (an error that names its cause in its own message and also gives it as
-/// its source would otherwise print the cause twice).
-pub fn error_text(e: &anyhow::Error) -> String {
-    let mut text = String::new();
-    for cause in e.chain().map(ToString::to_string) {
-        if text.is_empty() {
-            text = cause;
-        } else if !text.contains(&cause) {
-            text.push_str(": ");
-            text.push_str(&cause);
-        }
-    }
-    text
-}
+pub use crate::analysis::error_text;
 
 /// The scenario from the arguments: a file plus overrides, or defaults plus the tables
 /// named on the command line.

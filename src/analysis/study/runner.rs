@@ -272,7 +272,8 @@ pub fn run_study(
                     }
                     Err(e) => {
                         progress.finished(&v.name, None);
-                        rep.failed.push((v.name.clone(), format!("{e:#}")));
+                        rep.failed
+                            .push((v.name.clone(), crate::analysis::error_text(e.as_ref())));
                     }
                 }
             });
