@@ -24,10 +24,10 @@
 //!
 //! The resolution itself is degraded where the marker spacing is over half the opening
 //! width (`marker-to-opening`, at [`MARKER_TO_OPENING_HIGH`]). Two more refusals concern
-//! the resolution alone: a marker spacing wider than the
-//! smallest block dimension (`marker-spacing`: blocks between lattice sites carry no marker,
-//! so their tonnes vanish; found by the sweep below, where it halved the credited tonnes),
-//! and a schedule that needs more than 10⁸ draw steps (`increment`).
+//! the resolution alone: a marker spacing wider than the smallest block dimension
+//! (`marker-spacing`: blocks between lattice sites carry no marker, so their tonnes vanish;
+//! found by the sweep below, where it halved the credited tonnes), and a schedule that
+//! needs more than 10⁸ draw steps (`increment`).
 //!
 //! Each threshold's reason is at its constant below. The sweep that charts these regions
 //! and checks them against tiny isolated-draw runs is `tests/it/stability.rs`; its chart is
@@ -89,12 +89,12 @@ pub const INCREMENT_REFUSED: f64 = 30.0;
 pub const MAX_STEPS: f64 = 1e8;
 /// Above this marker spacing over the opening width an opening disk holds fewer than
 /// about two markers across, and drawpoints run short of markers late in their draw: on
-/// the mine scene (`caveflow demo --scale mine`, 4 m openings) the drawpoints' markers
-/// over the last 5% of their tonnes weigh a median 0.948 of the schedule (drawpoints never
-/// short) at 3.4 m markers (0.85 of
-/// the opening) against 0.964 at 1.65 m (0.41), and small draws at markers over about a
-/// third of the opening end short (`tests/it/props.rs`). The demo's default, 1.9 m markers
-/// in 4 m openings (0.475), draws its schedule in markers at a median of 0.994.
+/// the mine scene (`caveflow demo --scale mine`, 4 m openings) the markers of the
+/// drawpoints never short, over the last 5% of their tonnes, weigh a median 0.948 of the
+/// schedule at 3.4 m markers (0.85 of the opening) against 0.964 at 1.65 m (0.41), and
+/// small draws at markers over about a third of the opening end short
+/// (`tests/it/props.rs`). The demo's default, 1.9 m markers in 4 m openings (0.475), draws
+/// its schedule in markers at a median of 0.994.
 pub const MARKER_TO_OPENING_HIGH: f64 = 0.5;
 /// The friction angles of caved rock are 35–50° (DESIGN §2); REBOP's checks (Castro's
 /// gravel, Henderson) lie within 30–50°.
