@@ -332,17 +332,18 @@ pub fn assess(
         ));
     }
     let dp = &scene.drawpoints;
-    let coarse =
-        |d: &usize| res.marker_spacing > MARKER_TO_OPENING_HIGH * dp.width[*d] * (1.0 + 1e-9);
-    let narrowest = (0..dp.len())
-        .filter(coarse)
-        .min_by(|&a, &b| dp.width[a].total_cmp(&dp.width[b]));
-    if let Some(d) = narrowest {
+    let coarse: Vec<usize> = (0..dp.len())
+        .filter(|&d| res.marker_spacing > MARKER_TO_OPENING_HIGH * dp.width[d] * (1.0 + 1e-9))
+        .collect();
+    let narrowest = coarse
+        .iter()
+        .min_by(|&&a, &&b| dp.width[a].total_cmp(&dp.width[b]));
+    if let Some(&d) = narrowest {
         let (s, w) = (res.marker_spacing, dp.width[d]);
         by_rule.push((
             "marker-to-opening",
             Validity::Degraded,
-            (0..dp.len()).filter(coarse).count(),
+            coarse.len(),
             format!(
                 "drawpoint {}: marker spacing {s:.3} m is {:.2} of its {w} m opening (> {MARKER_TO_OPENING_HIGH}): the opening disk holds too few markers across, and drawpoints run short of markers late in their draw (the tonnes are credited, the grades come from fewer markers); lower resolution.marker_spacing",
                 dp.name[d],

@@ -11,7 +11,7 @@ use caveflow::engine::{Engine, RunOutput, WarningRule};
 use caveflow::model::synthetic::UniformBox;
 use caveflow::model::{Scenario, Scene};
 
-use crate::fixtures::{run, scenario};
+use crate::fixtures::{marker_ratio, run, scenario};
 
 /// Median of the correction factor over the `ok` rows of `periods` that drew markers.
 fn median_correction(out: &RunOutput, periods: &[i64]) -> f64 {
@@ -54,17 +54,6 @@ fn assert_unbiased(name: &str, scene: &Scene, out: &RunOutput, tol: f64) {
         .warnings
         .iter()
         .any(|w| w.rule == WarningRule::MassBalance));
-}
-
-/// Drawpoint `d`'s marker tonnes over its scheduled tonnes, over the run.
-fn marker_ratio(out: &RunOutput, d: usize) -> f64 {
-    let ex = &out.extraction;
-    let (m, s) = (0..ex.drawpoint.len())
-        .filter(|&k| ex.drawpoint[k] as usize == d)
-        .fold((0.0, 0.0), |a, k| {
-            (a.0 + ex.marker_tonnes[k], a.1 + ex.scheduled_tonnes[k])
-        });
-    m / s
 }
 
 /// Castro's isolated draw (summary §3.4, Simulation 2), 10 kg a period for ten periods.

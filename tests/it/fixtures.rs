@@ -295,6 +295,18 @@ pub fn run(scene: &Scene, sc: &Scenario) -> RunOutput {
     Engine::new(scene, sc).unwrap().run(&mut |_, _| {})
 }
 
+/// Marker tonnes over scheduled tonnes of drawpoint `d` over the whole run (its extraction
+/// rows).
+pub fn marker_ratio(out: &RunOutput, d: usize) -> f64 {
+    let ex = &out.extraction;
+    let (m, s) = (0..ex.drawpoint.len())
+        .filter(|&k| ex.drawpoint[k] as usize == d)
+        .fold((0.0, 0.0), |a, k| {
+            (a.0 + ex.marker_tonnes[k], a.1 + ex.scheduled_tonnes[k])
+        });
+    m / s
+}
+
 /// A scenario at an explicit resolution: disk thickness `h`, marker spacing `s`, draw
 /// increment `inc` (t per drawpoint per step).
 pub fn scenario(h: f64, s: f64, inc: f64) -> Scenario {

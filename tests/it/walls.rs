@@ -1,26 +1,14 @@
 //! Integration tests: IMZs bounded by the model's walls (the walls' images, summary §3.3's
 //! disks cut by the model's edge) keep to the model and draw their schedule.
 
-use caveflow::engine::RunOutput;
 use caveflow::model::synthetic::UniformBox;
 
 use crate::engine::disks;
-use crate::fixtures::{run, scenario};
+use crate::fixtures::{marker_ratio, run, scenario};
 
 // ---------------------------------------------------------------------------------------
 // 7. Walls: IMZs bounded by flowable ground
 // ---------------------------------------------------------------------------------------
-
-/// Marker tonnes over scheduled tonnes for one drawpoint over a whole run.
-fn marker_share(out: &RunOutput, dp: u32) -> f64 {
-    let ex = &out.extraction;
-    let (mut m, mut s) = (0.0, 0.0);
-    for k in (0..ex.drawpoint.len()).filter(|&k| ex.drawpoint[k] == dp) {
-        m += ex.marker_tonnes[k];
-        s += ex.scheduled_tonnes[k];
-    }
-    m / s
-}
 
 #[test]
 fn imzs_at_walls_stay_in_the_model_and_draw_their_schedule() {
@@ -58,9 +46,9 @@ fn imzs_at_walls_stay_in_the_model_and_draw_their_schedule() {
     // about a quarter of the open one. Discreteness and the early in-situ density (markers
     // engulfed at n0, drawn before the dilation reaches the drawpoint) move each share by
     // up to ~15% (measured 1.09–1.18 here), so the shares must agree within 20%.
-    let open = marker_share(&out, 0);
-    for dp in 1..3u32 {
-        let share = marker_share(&out, dp);
+    let open = marker_ratio(&out, 0);
+    for dp in 1..3 {
+        let share = marker_ratio(&out, dp);
         eprintln!(
             "DP{:02}: marker/scheduled {share:.3} (open ground {open:.3})",
             dp + 1
