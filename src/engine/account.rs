@@ -2,13 +2,16 @@
 //! that say how much work each phase did (`caveflow run --account`, `benches/engine.rs`).
 //!
 //! A run keeps no account unless asked ([`Engine::keep_account`](super::Engine)): the
-//! clock is then read at each phase boundary of an update, a few dozen times per update,
+//! clocks (wall time and the process's CPU time, summed over its threads) are then read at
+//! each phase boundary of an update, a few dozen times per update,
 //! and the candidate count of the marker pass is a second, counting pass over the same
 //! rows (charged to its own phase, `counting`, so it does not inflate the marker pass).
 //! Without an account the engine reads no clock and counts nothing but the updates and
 //! marker steps it keeps anyway.
 
 use std::time::{Duration, Instant};
+
+use cpu_time::ProcessTime;
 
 /// The phases of a run, in the order of an update.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -99,10 +102,28 @@ pub struct Counters {
     pub drawn: u64,
 }
 
-/// Wall time per phase and the work counters.
+/// A reading of both clocks: wall time and the process's CPU time.
+#[derive(Debug, Clone, Copy)]
+pub struct Mark {
+    wall: Instant,
+    cpu: ProcessTime,
+}
+
+impl Mark {
+    /// Both clocks now.
+    pub fn now() -> Mark {
+        Mark {
+            wall: Instant::now(),
+            cpu: ProcessTime::now(),
+        }
+    }
+}
+
+/// Wall and CPU time per phase and the work counters.
 #[derive(Debug, Clone, Default)]
 pub struct Account {
     time: [Duration; PHASES.len()],
+    cpu: [Duration; PHASES.len()],
     /// Counters.
     pub counters: Counters,
 }
@@ -110,15 +131,21 @@ pub struct Account {
 impl Account {
     /// Adds the time since `*t` to `phase` and restarts `*t`.
     #[inline]
-    pub fn charge(&mut self, phase: Phase, t: &mut Instant) {
-        let now = Instant::now();
-        self.time[phase as usize] += now - *t;
+    pub fn charge(&mut self, phase: Phase, t: &mut Mark) {
+        let now = Mark::now();
+        self.time[phase as usize] += now.wall - t.wall;
+        self.cpu[phase as usize] += now.cpu.duration_since(t.cpu);
         *t = now;
     }
 
     /// Wall time of `phase`.
     pub fn time(&self, phase: Phase) -> Duration {
         self.time[phase as usize]
+    }
+
+    /// CPU time of `phase`, summed over the threads.
+    pub fn cpu(&self, phase: Phase) -> Duration {
+        self.cpu[phase as usize]
     }
 
     /// Wall time of every phase but the account's own counting.
@@ -130,25 +157,38 @@ impl Account {
             .sum()
     }
 
-    /// The account as a text table: phase, seconds, share of the engine's time, then the
+    /// CPU time of every phase but the account's own counting.
+    pub fn engine_cpu(&self) -> Duration {
+        PHASES
+            .iter()
+            .filter(|&&p| p != Phase::Counting)
+            .map(|&p| self.cpu(p))
+            .sum()
+    }
+
+    /// The account as a text table: phase, wall seconds, share of the engine's wall time,
+    /// CPU seconds and CPU over wall (how many threads the phase kept busy), then the
     /// counters and the ratios that read off them.
     pub fn report(&self) -> String {
         let total = self.engine_time().as_secs_f64().max(1e-12);
-        let mut s = String::from("phase                      wall s   share\n");
+        let mut s = String::from("phase                      wall s   share    cpu s  cpu/wall\n");
+        let line = |name: &str, t: f64, share: String, c: f64| {
+            format!(
+                "{name:<24} {t:>8.2} {share:>7} {c:>8.2} {:>8.2}\n",
+                c / t.max(1e-12)
+            )
+        };
         for p in PHASES {
-            let t = self.time(p).as_secs_f64();
-            if p == Phase::Counting {
-                s.push_str(&format!("{:<24} {:>8.2}\n", p.name(), t));
+            let (t, c) = (self.time(p).as_secs_f64(), self.cpu(p).as_secs_f64());
+            let share = if p == Phase::Counting {
+                String::new()
             } else {
-                s.push_str(&format!(
-                    "{:<24} {:>8.2} {:>6.1}%\n",
-                    p.name(),
-                    t,
-                    100.0 * t / total
-                ));
-            }
+                format!("{:.1}%", 100.0 * t / total)
+            };
+            s.push_str(&line(p.name(), t, share, c));
         }
-        s.push_str(&format!("{:<24} {:>8.2}\n", "engine total", total));
+        let c = self.engine_cpu().as_secs_f64();
+        s.push_str(&line("engine total", total, String::new(), c));
         let c = &self.counters;
         let per = |a: u64, b: u64| a as f64 / (b.max(1)) as f64;
         s.push_str(&format!(

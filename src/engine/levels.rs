@@ -112,7 +112,7 @@ impl Engine<'_> {
         let motion = level_motions(&self.imzs, &none, &owned);
         // A transfer's choice is keyed by the marker and the base, as in any other step.
         let (ground, seed) = ((&self.scene.blocks, period), self.scenario.seed);
-        let fields = level_fields(&geoms, &motion, &grids, ground, seed);
+        let fields = level_fields(&geoms, &motion, &grids, &self.reach, ground, seed);
         self.marker_steps += lagging.len() as u64;
         if let Some(a) = self.account.as_mut() {
             let (tests, hits) = markers::count_candidates(&self.markers, &fields, &lagging);
@@ -160,10 +160,10 @@ pub(super) fn level_fields<'f>(
     geoms: &'f [ImzGeom],
     motion: &'f [Vec<&'f [DiskMotion]>],
     grids: &'f [ImzGrid],
+    reach: &WallReach,
     ground: (&'f crate::model::BlockModel, i64),
     seed: u64,
 ) -> Vec<MotionField<'f>> {
-    let reach = WallReach::new(geoms, ground.0);
     (0..grids.len())
         .map(|l| MotionField {
             geoms,

@@ -71,12 +71,10 @@ pub mod stability;
 pub mod stress;
 pub mod trace;
 
-use std::time::Instant;
-
 use rayon::prelude::*;
 
 use crate::model::{Scenario, Scene};
-use account::{Account, Phase};
+use account::{Account, Mark, Phase};
 pub use balance::{
     correction_stats, correction_warning, CORRECTION_BOUNDS, CORRECTION_MEDIAN_TOLERANCE,
 };
@@ -174,6 +172,9 @@ pub struct Engine<'a> {
     listings: Vec<Listing>,
     /// Per IMZ, its `drew_at` when its copy and listing were made (`u64::MAX`: never).
     viewed_at: Vec<u64>,
+    /// How far the IMZs' images reach from the walls, widened by the IMZs that drew
+    /// (`Engine::refresh_views`).
+    reach: WallReach,
     /// Per block column (i + n_x j), whether its marker mass changed since the air gap was
     /// last recorded (`air_gap`).
     dirty_cols: Vec<bool>,
@@ -198,12 +199,12 @@ pub struct Engine<'a> {
 
 impl<'a> Engine<'a> {
     /// The clock, when an account is kept.
-    fn clock(&self) -> Option<Instant> {
-        self.account.as_ref().map(|_| Instant::now())
+    fn clock(&self) -> Option<Mark> {
+        self.account.as_ref().map(|_| Mark::now())
     }
 
     /// Charges the time since `t` to `phase` (when an account is kept) and restarts `t`.
-    fn charge(&mut self, phase: Phase, t: &mut Option<Instant>) {
+    fn charge(&mut self, phase: Phase, t: &mut Option<Mark>) {
         if let (Some(a), Some(t)) = (self.account.as_mut(), t.as_mut()) {
             a.charge(phase, t);
         }
@@ -262,18 +263,29 @@ impl<'a> Engine<'a> {
     }
 
     /// Brings the copies of the IMZs' geometry (`geoms`) and their grid listings up to
-    /// date: an IMZ's disks change only when it draws, so only the IMZs that drew since
-    /// they were last copied are copied and listed again (in parallel).
+    /// date, and the walls' reach with them: an IMZ's disks change only when it draws, so
+    /// only the IMZs that drew since they were last copied are copied and listed again (in
+    /// parallel).
     fn refresh_views(&mut self, geoms: &mut [ImzGeom]) {
         let (origin, extent, cell) = (self.extent.0, self.extent.1, self.grid_cell());
-        (&self.imzs, geoms, &mut self.listings, &mut self.viewed_at)
+        let copied: Vec<usize> = (
+            &self.imzs,
+            &mut *geoms,
+            &mut self.listings,
+            &mut self.viewed_at,
+        )
             .into_par_iter()
             .filter(|(m, _, _, at)| **at != m.drew_at)
-            .for_each(|(m, g, listing, at)| {
+            .map(|(m, g, listing, at)| {
                 g.clone_from(&m.geom);
                 *listing = ImzGrid::listing(g, origin, extent, cell);
                 *at = m.drew_at;
-            });
+                m.id
+            })
+            .collect();
+        for d in copied {
+            self.reach.widen(&geoms[d], &self.scene.blocks);
+        }
     }
 
     /// Calls `f` with the motion field of every IMZ's last interval, as a marker update
@@ -453,7 +465,7 @@ impl<'a> Engine<'a> {
         let owned = self.window_motions(&active);
         let motion = level_motions(&self.imzs, &is_drawing, &owned);
         let (ground, seed) = ((&self.scene.blocks, period), self.scenario.seed);
-        let fields = level_fields(&geoms, &motion, &grids, ground, seed);
+        let fields = level_fields(&geoms, &motion, &grids, &self.reach, ground, seed);
         self.steps_done = u;
         self.trace.step(&fields[0], period);
         let perc = fines::Percolation {

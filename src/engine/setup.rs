@@ -7,7 +7,7 @@ use super::account::Account;
 use super::cadence::{self, Cadence};
 use super::height_of_draw::tributary;
 use super::imz::{Imz, ImzGeom, ImzParams, Listing};
-use super::markers::{Bins, DrawnMarkers, Lattice, Markers};
+use super::markers::{Bins, DrawnMarkers, Lattice, Markers, WallReach};
 use super::{crediting, trace, Engine, EngineError, RunOutput, RunPlan, RunWarning, WarningRule};
 use crate::model::{Scenario, Scene};
 
@@ -57,7 +57,8 @@ impl<'a> Engine<'a> {
                 }
                 m
             })
-            .collect();
+            .collect::<Vec<Imz>>();
+        let imz_geoms: Vec<ImzGeom> = imzs.iter().map(|m| m.geom.clone()).collect();
         let n_dp = dp.len();
         let mut out = RunOutput {
             resolution: res,
@@ -120,6 +121,7 @@ impl<'a> Engine<'a> {
             geoms: vec![ImzGeom::default(); n_dp],
             listings: vec![Listing::new(); n_dp],
             viewed_at: vec![u64::MAX; n_dp],
+            reach: WallReach::new(&imz_geoms, bm),
             dirty_cols: vec![true; bm.dims[0] * bm.dims[1]],
             all_moved: true,
             fixed_mass: vec![0; bm.len()],

@@ -250,7 +250,8 @@ fn multi_rate_cadence_saves_steps_and_keeps_the_draw() {
 /// output bit for bit as one that does not, and its counters agree with what the engine
 /// counts anyway (marker steps, markers engulfed and drawn) and with each other (a hit is
 /// a candidate that held the marker; every stepped marker lies in at least one IMZ only
-/// where it moves, so hits per step lie between 0 and the candidates per step).
+/// where it moves, so hits per step lie between 0 and the candidates per step); each
+/// phase is charged wall and CPU time.
 #[test]
 fn the_account_changes_no_result_and_adds_up() {
     use caveflow::model::demo::{self, DemoScale};
@@ -290,6 +291,7 @@ fn the_account_changes_no_result_and_adds_up() {
         Phase::Finish,
     ] {
         assert!(account.time(p).as_nanos() > 0, "{} never charged", p.name());
+        assert!(account.cpu(p).as_nanos() > 0, "{} never charged CPU time", p.name());
     }
     let sum: std::time::Duration = PHASES.iter().map(|&p| account.time(p)).sum();
     assert!(account.engine_time() < sum);

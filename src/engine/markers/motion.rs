@@ -5,6 +5,7 @@
 //! cadence window's step is split at the disk bases it reaches.
 
 use rand::Rng;
+use smallvec::SmallVec;
 
 use super::super::random::{marker_rng, TRANSFER_STREAM};
 
@@ -148,9 +149,7 @@ impl MotionField<'_> {
         let mut total = 0.0f64;
         // Disk bases this marker may cross ([`Base`]). Whether it crosses is known only once
         // every IMZ's move is summed.
-        let mut bases = [Base::default(); 8];
-        let mut extra: Vec<Base> = Vec::new();
-        let mut n_b = 0usize;
+        let mut bases: SmallVec<[Base; MAX_BASES]> = SmallVec::new();
         // The moves of IMZ d at a point q in its disk i, at (ex, ey) from its axis, their plan
         // components multiplied by (sx, sy): q = p for the IMZ itself, p's mirror across a
         // wall for the IMZ's image. Most IMZs listed for a cell miss the marker; the callers
@@ -206,12 +205,7 @@ impl MotionField<'_> {
                         s: [sx, sy],
                         dz,
                     };
-                    if n_b < bases.len() {
-                        bases[n_b] = base;
-                        n_b += 1;
-                    } else {
-                        extra.push(base);
-                    }
+                    bases.push(base);
                 }
                 // Shear strain in the annulus (a > R − w; the whole disk when R ≤ w).
                 if a > m.r - m.w {
@@ -251,9 +245,8 @@ impl MotionField<'_> {
         };
         // Split: the base the move reaches first, where the part ends.
         let first = if split {
-            bases[..n_b]
+            bases
                 .iter()
-                .chain(&extra)
                 .map(base_z)
                 .filter(|&z| z_new < z)
                 .fold(f64::NEG_INFINITY, f64::max)
@@ -277,7 +270,7 @@ impl MotionField<'_> {
                 z_new < base_z(b)
             }
         };
-        let mut crossing = bases[..n_b].iter().chain(&extra).filter(crosses);
+        let mut crossing = bases.iter().filter(crosses);
         let chosen = match crossing.clone().count() {
             0 => None,
             1 if crossing.clone().all(|b| b.dz.abs() == total) => crossing.next(),
@@ -385,13 +378,18 @@ impl MotionField<'_> {
 /// the default `max_marker_move` (at most half a disk) crosses one base at most.
 const MAX_PARTS: usize = 8;
 
+/// Disk bases a marker's move may cross that a step keeps on the stack (more spill to
+/// the heap): one per IMZ holding the marker above its lowest disk, images included; a
+/// marker step hits 5 IMZs on average on the mine scene.
+const MAX_BASES: usize = 16;
+
 /// How far below a disk base a split step leaves a marker, relative to the base's height.
 const BELOW: f64 = 1e-12;
 
 /// A disk base that a marker's move may cross: IMZ `d`'s disk `i`, the marker's radius
 /// in it after the radial move, its plan offset from the axis as that IMZ (or its image)
 /// sees it and the signs that map the IMZ's plan moves to the marker's, and that IMZ's Δz.
-#[derive(Debug, Clone, Copy, Default)]
+#[derive(Debug, Clone, Copy)]
 struct Base {
     d: u32,
     i: u32,

@@ -2,8 +2,6 @@
 //! IMZs' images reach ([`WallReach`]), and the images of the IMZs that a marker near a
 //! wall is moved by.
 
-use rayon::prelude::*;
-
 use super::super::imz::ImzGeom;
 use super::MotionField;
 use crate::model::BlockModel;
@@ -25,45 +23,46 @@ pub struct WallReach {
 impl WallReach {
     /// The reach of the disks `geoms` in the walls of `bm`.
     pub fn new(geoms: &[ImzGeom], bm: &BlockModel) -> WallReach {
-        let (lo, hi) = (bm.origin, bm.max_corner());
         let z0 = geoms.iter().map(|g| g.z0).fold(f64::INFINITY, f64::min);
         let h = geoms.iter().map(|g| g.h).fold(f64::INFINITY, f64::min);
         if !(z0.is_finite() && h > 0.0) {
             return WallReach::default();
         }
-        // Each IMZ's reach per band, merged by the maximum (in parallel: a mine holds
-        // hundreds of IMZs, and the maximum does not depend on the order).
-        let one = |g: &ImzGeom| {
-            let mut bands: Vec<[f64; 4]> = Vec::new();
-            let dist = [g.x - lo[0], hi[0] - g.x, g.y - lo[1], hi[1] - g.y];
-            for (i, &r) in g.radius.iter().enumerate() {
-                let base = g.z0 + i as f64 * g.h - z0;
-                let k0 = (base / h).floor().max(0.0) as usize;
-                let k1 = ((base + g.h) / h).ceil() as usize;
-                if bands.len() < k1 {
-                    bands.resize(k1, [f64::NEG_INFINITY; 4]);
-                }
-                for band in &mut bands[k0..k1] {
-                    for w in 0..4 {
-                        band[w] = band[w].max(r - dist[w]);
-                    }
-                }
-            }
-            bands
+        let mut reach = WallReach {
+            z0,
+            h,
+            bands: Vec::new(),
         };
-        let merge = |mut a: Vec<[f64; 4]>, b: Vec<[f64; 4]>| {
-            if a.len() < b.len() {
-                a.resize(b.len(), [f64::NEG_INFINITY; 4]);
+        for g in geoms {
+            reach.widen(g, bm);
+        }
+        reach
+    }
+
+    /// Widens the reach to cover the disks of `g` (one of the IMZs it was made for, whose
+    /// base and disk height do not change). A disk's radius only grows, so the engine keeps
+    /// one reach for the run and widens it by the IMZs that drew (`Engine::refresh_views`);
+    /// were a disk to narrow, the kept reach would only be wider than needed, which makes a
+    /// marker test images that hold it not, and moves nothing.
+    pub fn widen(&mut self, g: &ImzGeom, bm: &BlockModel) {
+        if !(self.h > 0.0) {
+            return;
+        }
+        let (lo, hi) = (bm.origin, bm.max_corner());
+        let dist = [g.x - lo[0], hi[0] - g.x, g.y - lo[1], hi[1] - g.y];
+        for (i, &r) in g.radius.iter().enumerate() {
+            let base = g.z0 + i as f64 * g.h - self.z0;
+            let k0 = (base / self.h).floor().max(0.0) as usize;
+            let k1 = ((base + g.h) / self.h).ceil() as usize;
+            if self.bands.len() < k1 {
+                self.bands.resize(k1, [f64::NEG_INFINITY; 4]);
             }
-            for (x, y) in a.iter_mut().zip(&b) {
+            for band in &mut self.bands[k0..k1] {
                 for w in 0..4 {
-                    x[w] = x[w].max(y[w]);
+                    band[w] = band[w].max(r - dist[w]);
                 }
             }
-            a
-        };
-        let bands = geoms.par_iter().map(one).reduce(Vec::new, merge);
-        WallReach { z0, h, bands }
+        }
     }
 
     /// The reach of the band that holds height `z` (−∞ where no disk is).
