@@ -25,7 +25,7 @@ use super::{Engine, EngineError, RunOutput};
 use crate::model::{Scenario, Scene};
 
 /// Format version: bump when the state's layout changes.
-const VERSION: u32 = 9;
+const VERSION: u32 = 10;
 
 #[derive(Serialize, Deserialize)]
 struct State {
@@ -176,8 +176,16 @@ impl<'a> Engine<'a> {
         for k in 0..d.m.len() {
             e.streams[d.drawpoint[k] as usize].push(d.tau[k], d.m.mass[k], k);
         }
+        if let Some(rec) = &e.out.control {
+            // The realised rows so far are the schedule drawn (`engine::draw_control`).
+            let n = rec.realised.len();
+            if n != s.next * n_dp {
+                return Err(bad("does not fit this scene".into()));
+            }
+            e.schedule.to_mut().tonnes[..n].copy_from_slice(&rec.realised);
+        }
         for p in 0..s.next {
-            let row = scene.schedule.period(p);
+            let row = e.schedule.period(p);
             e.sched_cum.iter_mut().zip(row).for_each(|(c, t)| *c += t);
         }
         Ok((e, s.next))

@@ -44,7 +44,7 @@ impl Engine<'_> {
         let n_dp = scene.drawpoints.len();
         let mut before = vec![vec![0.0; n_dp]; scene.periods.len() + 1];
         for p in 0..scene.periods.len() {
-            let row = scene.schedule.period(p);
+            let row = self.schedule.period(p);
             for d in 0..n_dp {
                 before[p + 1][d] = before[p][d] + row[d];
             }
@@ -81,7 +81,7 @@ impl Engine<'_> {
         self.streams = Vec::new();
         self.rims = Vec::new();
         let dm = &self.drawn;
-        let sched = &self.scene.schedule;
+        let sched = &self.schedule;
         let n_dp = self.scene.drawpoints.len();
         let b = &mut self.out.balance;
         b.per_drawpoint = (0..n_dp).map(|d| (sched.total(d), self.cum[d])).collect();
@@ -162,7 +162,7 @@ impl Engine<'_> {
     }
 
     /// Adds row `k` of the drawn markers `mk` to a tally.
-    fn contribute(&self, mk: &Markers, k: usize, t: &mut Tally) {
+    pub(super) fn contribute(&self, mk: &Markers, k: usize, t: &mut Tally) {
         let bm = &self.scene.blocks;
         let b = mk.block[k] as usize;
         let m = mk.mass[k];

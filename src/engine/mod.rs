@@ -52,6 +52,7 @@ mod balance;
 pub mod cadence;
 pub mod checkpoint;
 pub mod crediting;
+pub mod draw_control;
 pub mod fines;
 mod finish;
 pub mod fragmentation;
@@ -139,6 +140,11 @@ pub struct Engine<'a> {
     cum: Vec<f64>,
     /// Per drawpoint, its cumulative scheduled tonnes before the period being drawn, t.
     sched_cum: Vec<f64>,
+    /// The schedule drawn: the scene's, or under draw control the realised one, each
+    /// period's row set when the period starts (`engine::draw_control`).
+    schedule: std::borrow::Cow<'a, crate::model::Schedule>,
+    /// The drawpoints' columns and neighbours, under draw control.
+    control: Option<draw_control::Layout>,
     /// Index of the period being drawn, and how far through it the step that is moving
     /// markers is (½ step in: the draw time of what it draws, `engine::crediting`).
     at: (usize, f64),
@@ -326,7 +332,9 @@ impl<'a> Engine<'a> {
             self.rims.iter_mut().for_each(Vec::clear);
             self.all_moved = true;
         }
-        let row = scene.schedule.period(p);
+        self.control_plan(p);
+        let row = self.schedule.period(p).to_vec();
+        let row = &row[..];
         let scheduled: Vec<usize> = (0..row.len()).filter(|&d| row[d] > 0.0).collect();
         // With the multi-rate cadence, most markers step rarely, and the sums they feed
         // change as slowly: an IMZ's sums are refreshed once per longest window it draws
@@ -382,7 +390,9 @@ impl<'a> Engine<'a> {
         if rill {
             self.rill(period);
         }
+        let first_row = self.out.extraction.drawpoint.len();
         self.close_period(p, period, &drawing);
+        self.control_review(p, first_row);
         for (cum, t) in self.sched_cum.iter_mut().zip(row) {
             *cum += t;
         }
@@ -536,7 +546,7 @@ impl<'a> Engine<'a> {
             let t = &mut self.tally[d];
             t.0 += m;
             t.1 += 1;
-            let tau = self.sched_cum[d] + frac * self.scene.schedule.period(p)[d];
+            let tau = self.sched_cum[d] + frac * self.schedule.period(p)[d];
             self.streams[d].push(tau, m, self.drawn.m.len() + j);
             self.drawn.tau.push(tau);
             self.drawn.drawpoint.push(d as u32);

@@ -79,7 +79,7 @@ impl Engine<'_> {
             // before the period's tallies are written.
             self.catch_up(period);
         }
-        let row = scene.schedule.period(p);
+        let row = self.schedule.period(p).to_vec();
         let mut caved = vec![false; row.len()];
         drawing.iter().for_each(|&d| caved[d] = true);
         let bm = &scene.blocks;

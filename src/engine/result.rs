@@ -320,6 +320,9 @@ pub struct RunOutput {
     pub stress: Vec<super::stress::StressField>,
     /// Trace points at the end of every period (empty without trace points).
     pub trace: TraceTable,
+    /// Draw control's realised schedule, closures and production against target (None
+    /// without `[draw_control]`'s target strategy).
+    pub control: Option<super::draw_control::ControlRecord>,
     /// Time per phase and work counters, when the engine kept an account
     /// (`Engine::keep_account`).
     #[serde(skip)]

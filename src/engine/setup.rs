@@ -8,7 +8,10 @@ use super::cadence::{self, Cadence};
 use super::height_of_draw::tributary;
 use super::imz::{Imz, ImzGeom, ImzParams, Listing};
 use super::markers::{Bins, DrawnMarkers, Lattice, Markers, WallReach};
-use super::{crediting, trace, Engine, EngineError, RunOutput, RunPlan, RunWarning, WarningRule};
+use super::{
+    crediting, draw_control, trace, Engine, EngineError, RunOutput, RunPlan, RunWarning,
+    WarningRule,
+};
 use crate::model::{Scenario, Scene};
 
 impl<'a> Engine<'a> {
@@ -65,6 +68,12 @@ impl<'a> Engine<'a> {
             ..Default::default()
         };
         out.warnings = plan.into_warnings();
+        let dc = &scenario.draw_control;
+        out.control = dc.is_target().then(|| draw_control::ControlRecord {
+            closed: vec![None; dp.len()],
+            low: vec![0; dp.len()],
+            ..Default::default()
+        });
         out.extraction.grades = vec![Vec::new(); bm.grades.len()];
         out.extraction.lithology = vec![Vec::new(); bm.lithology_names.len()];
         if scenario.mechanisms.fragmentation {
@@ -92,6 +101,17 @@ impl<'a> Engine<'a> {
             carry: vec![0.0; n_dp],
             cum: vec![0.0; n_dp],
             sched_cum: vec![0.0; n_dp],
+            schedule: if dc.is_target() {
+                std::borrow::Cow::Owned(crate::model::Schedule {
+                    n_drawpoints: n_dp,
+                    tonnes: vec![0.0; scene.schedule.tonnes.len()],
+                })
+            } else {
+                std::borrow::Cow::Borrowed(&scene.schedule)
+            },
+            control: dc
+                .is_target()
+                .then(|| draw_control::Layout::new(scene, dc.neighbour_radius)),
             at: (0, 0.0),
             streams: vec![crediting::Stream::default(); n_dp],
             tally: vec![(0.0, 0); n_dp],

@@ -12,7 +12,7 @@ pub mod synthetic;
 pub use block_model::BlockModel;
 pub use layout::{Drawpoints, Periods, Schedule};
 pub use records::{load_records, ProductionRecords};
-pub use scenario::Scenario;
+pub use scenario::{Economics, Scenario};
 
 /// A fully loaded, validated scene: what the engine runs.
 #[derive(Debug, Clone)]

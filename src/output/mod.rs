@@ -19,6 +19,8 @@
 //! - [`dilution`]: the dilution entry per drawpoint.
 //! - [`stress`]: the stress logic's tables and charts.
 //! - [`trace`]: the trace points' table.
+//! - [`draw_control`]: draw control's realised schedule, closures and production against
+//!   target.
 //! - [`massflow`]: MassFlow's report layouts (`outputs.massflow`).
 //! - [`vtk`]: VTK XML files and `.pvd` collections for ParaView (`outputs.vtk`).
 //!
@@ -35,6 +37,7 @@ pub mod charts;
 pub mod columns;
 pub mod dataset;
 pub mod dilution;
+pub mod draw_control;
 pub mod inputs;
 pub mod manifest;
 pub mod massflow;

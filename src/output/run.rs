@@ -10,6 +10,8 @@
 //!                                           output::dataset)
 //! <dir>/stress_levels.parquet, <dir>/stress_sections.parquet   (only with mechanisms.stress)
 //! <dir>/trace.parquet                       (only with trace points; output::trace)
+//! <dir>/schedule_realised.parquet, closures.parquet, production_target.parquet
+//!                                            (only under draw control; output::draw_control)
 //! <dir>/vtk/                               (only with outputs.vtk, `run --vtk`; output::vtk)
 //! <dir>/manifest.json                       (written last)
 //! ```
@@ -356,6 +358,10 @@ pub fn write_run_with(
 
     if !run.trace.trace_id.is_empty() {
         written.push(super::trace::write_trace(dir, scene, take(&mut run.trace))?);
+    }
+
+    if let Some(rec) = run.control.take() {
+        written.extend(super::draw_control::write_control(dir, scene, rec)?);
     }
 
     let path = dir.join("manifest.json");

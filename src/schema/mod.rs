@@ -131,6 +131,8 @@ pub const ALL: &[TableSpec] = &[
     DRAWN,
     MARKERS,
     TRACE,
+    CLOSURES,
+    PRODUCTION_TARGET,
     AIR_GAP,
     SURFACE,
     STRESS_SECTIONS,

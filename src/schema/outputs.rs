@@ -135,6 +135,37 @@ pub const MARKERS: TableSpec = TableSpec {
     extra: None,
 };
 
+/// Draw control's closures (`[draw_control]`, `engine::draw_control`).
+pub const CLOSURES: TableSpec = TableSpec {
+    name: "closures",
+    description: "Draw control (strategy = \"target\"): one row per drawpoint closed by a closure rule, in the period its rule was first met; it draws nothing after it.",
+    fields: &[
+        f("drawpoint", Str, "-", "Drawpoint name", true, &[]),
+        f("period", I64, "-", "Period in which it closed (its last period of draw)", true, &[]),
+        f("reason", Str, "-", "shutoff_grade | dilution | hod_limit | best_hod", true, &[]),
+        f("cum_tonnes", F64, "t", "Tonnes it drew in all", true, &[]),
+        f("hod", F64, "m", "Height of draw at closure", true, &[]),
+        f("grade", F64, "grade units", "Grade of what it drew in the closing period, as known then: the shut-off column, else the first grade column", true, &[]),
+    ],
+    extra: None,
+};
+
+/// Draw control's production against target (`engine::draw_control`).
+pub const PRODUCTION_TARGET: TableSpec = TableSpec {
+    name: "production_target",
+    description: "Draw control (strategy = \"target\"): per period, the production target, the tonnes shared among the open drawpoints, the tonnes credited, and what no open drawpoint could take.",
+    fields: &[
+        f("period", I64, "-", "Period number", true, &[]),
+        f("target_tonnes", F64, "t", "Target: target_rate x the period's days", true, &[]),
+        f("planned_tonnes", F64, "t", "Tonnes shared among the open drawpoints (the realised schedule's period total)", true, &[]),
+        f("tonnes", F64, "t", "Tonnes credited (below planned where a drawpoint could not deliver its share)", true, &[]),
+        f("shortfall_tonnes", F64, "t", "Target no open drawpoint could take under its rate limit", true, &[]),
+        f("open", I64, "-", "Drawpoints open in the period", true, &[]),
+        f("closed", I64, "-", "Drawpoints closed before the period", true, &[]),
+    ],
+    extra: None,
+};
+
 /// Trace points (`--trace`, `inputs.trace`; `engine::trace`).
 pub const TRACE: TableSpec = TableSpec {
     name: "trace",

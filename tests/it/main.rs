@@ -11,6 +11,7 @@ mod cli;
 mod dataset;
 mod demo;
 mod determinism;
+mod draw_control;
 mod engine;
 mod fixtures;
 mod fuzz;

@@ -291,7 +291,11 @@ fn the_account_changes_no_result_and_adds_up() {
         Phase::Finish,
     ] {
         assert!(account.time(p).as_nanos() > 0, "{} never charged", p.name());
-        assert!(account.cpu(p).as_nanos() > 0, "{} never charged CPU time", p.name());
+        assert!(
+            account.cpu(p).as_nanos() > 0,
+            "{} never charged CPU time",
+            p.name()
+        );
     }
     let sum: std::time::Duration = PHASES.iter().map(|&p| account.time(p)).sum();
     assert!(account.engine_time() < sum);

@@ -312,6 +312,7 @@ fn fake_run(scene: &Scene) -> RunOutput {
         },
         stress: Vec::new(),
         trace: Default::default(),
+        control: None,
         account: None,
         end: None,
     }

@@ -28,9 +28,12 @@
 //!
 //! Each table has its own file: `blocks` (the block model and its grid),
 //! `drawpoints` (drawbells, drawpoints and their openings), `schedule` (periods
-//! and the schedule) and `trace` (the trace points, each inside the block model).
+//! and the schedule), `trace` (the trace points, each inside the block model) and
+//! `draw_control` (the grade columns `[draw_control]` and `[economics]` name, and that
+//! some drawpoint opens under a production target).
 
 mod blocks;
+mod draw_control;
 mod drawpoints;
 mod schedule;
 mod trace;
@@ -163,6 +166,13 @@ pub fn load_scene(sc: &Scenario) -> Result<LoadedScene, Problems> {
     }
     if let (Some(t), Some(b)) = (&trace, &blocks) {
         l.check_trace(t, b);
+    }
+    let blocks_file = i.blocks.display().to_string();
+    if let Some(b) = &blocks {
+        l.check_grade_names(sc, b, &blocks_file);
+    }
+    if let (Some(b), Some(d), Some(p)) = (&blocks, &drawpoints, &periods) {
+        l.check_some_open(sc, b, d, p, &i.drawpoints.display().to_string());
     }
     let model_tonnes = blocks.as_ref().and_then(in_situ_tonnes);
     let schedule = match (&schedule, &drawpoints, &periods) {

@@ -9,9 +9,11 @@ use std::path::PathBuf;
 use serde::{Deserialize, Serialize};
 
 mod calibration;
+mod draw_control;
 mod read;
 
 pub use calibration::{Calibration, CalibrationError};
+pub use draw_control::{DrawControl, Economics, Strategy};
 pub use read::{ScenarioError, SettingError};
 
 /// A complete scenario.
@@ -38,6 +40,10 @@ pub struct Scenario {
     pub stress: StressSettings,
     /// Multiplicative adjustments of block properties, for back-analysis (default: none).
     pub calibration: Calibration,
+    /// How each period's tonnes are decided (default: the schedule, as given).
+    pub draw_control: DrawControl,
+    /// What a tonne drawn is worth (optional: values and best heights of draw).
+    pub economics: Option<Economics>,
     /// Seed of the run's random number generator.
     pub seed: u64,
 }

@@ -233,6 +233,10 @@ impl Scenario {
         pos("fragmentation.phi", Some(f.phi))?;
         pos("fragmentation.product_exponent", Some(f.product_exponent))?;
         self.calibration.check()?;
+        if let Some(e) = &self.economics {
+            e.check()?;
+        }
+        self.draw_control.check(self.economics.as_ref())?;
         if let Some(n) = &self.outputs.scenario_name {
             let ok = |c: char| c.is_ascii_alphanumeric() || matches!(c, '.' | '_' | '-');
             if n.is_empty() || !n.chars().all(ok) || n.starts_with('.') {
