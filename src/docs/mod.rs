@@ -16,6 +16,9 @@ pub mod outputs {}
 #[doc = include_str!("commands.md")]
 pub mod commands {}
 
+#[doc = include_str!("draw_control.md")]
+pub mod draw_control {}
+
 #[doc = include_str!("physics.md")]
 pub mod physics {}
 

@@ -39,12 +39,14 @@ pub enum Phase {
     PeriodEnd,
     /// The end of the run: the streams read into the extraction table, the drawn table.
     Finish,
+    /// Draw control's plan and review of each period (`engine::draw_control`).
+    Control,
     /// The account's own counting pass (not part of a normal run).
     Counting,
 }
 
 /// Every phase, in order.
-pub const PHASES: [Phase; 11] = [
+pub const PHASES: [Phase; 12] = [
     Phase::Growth,
     Phase::Engulf,
     Phase::Grids,
@@ -55,6 +57,7 @@ pub const PHASES: [Phase; 11] = [
     Phase::AirGap,
     Phase::PeriodEnd,
     Phase::Finish,
+    Phase::Control,
     Phase::Counting,
 ];
 
@@ -72,6 +75,7 @@ impl Phase {
             Phase::AirGap => "air gap",
             Phase::PeriodEnd => "period end",
             Phase::Finish => "finish",
+            Phase::Control => "draw control",
             Phase::Counting => "counting (account only)",
         }
     }

@@ -79,6 +79,10 @@ impl Engine<'_> {
         self.drawn.tau = Vec::new();
         self.read_streams();
         self.streams = Vec::new();
+        if let Some(e) = &self.scenario.economics {
+            let names = &self.scene.blocks.grade_names;
+            self.out.value = Some(super::value::values(&self.out.extraction, names, e));
+        }
         self.rims = Vec::new();
         let dm = &self.drawn;
         let sched = &self.schedule;

@@ -71,6 +71,7 @@ mod setup;
 pub mod stability;
 pub mod stress;
 pub mod trace;
+pub mod value;
 
 use rayon::prelude::*;
 
@@ -332,7 +333,9 @@ impl<'a> Engine<'a> {
             self.rims.iter_mut().for_each(Vec::clear);
             self.all_moved = true;
         }
+        let mut t = self.clock();
         self.control_plan(p);
+        self.charge(Phase::Control, &mut t);
         let row = self.schedule.period(p).to_vec();
         let row = &row[..];
         let scheduled: Vec<usize> = (0..row.len()).filter(|&d| row[d] > 0.0).collect();
@@ -348,7 +351,6 @@ impl<'a> Engine<'a> {
                 window == 1 || m.refreshed_at == 0 || m.drew_at >= m.refreshed_at + window
             })
             .collect();
-        let mut t = self.clock();
         self.refresh_mobilised(&stale);
         self.charge(Phase::Mobilised, &mut t);
         for &d in &stale {
@@ -392,7 +394,9 @@ impl<'a> Engine<'a> {
         }
         let first_row = self.out.extraction.drawpoint.len();
         self.close_period(p, period, &drawing);
+        let mut t = self.clock();
         self.control_review(p, first_row);
+        self.charge(Phase::Control, &mut t);
         for (cum, t) in self.sched_cum.iter_mut().zip(row) {
             *cum += t;
         }

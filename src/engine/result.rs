@@ -323,6 +323,9 @@ pub struct RunOutput {
     /// Draw control's realised schedule, closures and production against target (None
     /// without `[draw_control]`'s target strategy).
     pub control: Option<super::draw_control::ControlRecord>,
+    /// Each drawpoint-period's value and each drawpoint's best height of draw (None
+    /// without `[economics]`).
+    pub value: Option<(super::value::ValueTable, super::value::BestHod)>,
     /// Time per phase and work counters, when the engine kept an account
     /// (`Engine::keep_account`).
     #[serde(skip)]

@@ -1,15 +1,17 @@
 //! Draw control's tables (`engine::draw_control`), written only under the target
 //! strategy: `<dir>/schedule_realised.parquet` (the tonnes each drawpoint drew each period,
 //! in the schedule's own long schema, so that it can be run as a fixed schedule),
-//! `<dir>/closures.parquet` and `<dir>/production_target.parquet`.
+//! `<dir>/closures.parquet` and `<dir>/production_target.parquet`; and with `[economics]`
+//! (any strategy) `<dir>/value.parquet` and `<dir>/best_hod.parquet` (`engine::value`).
 
 use std::path::{Path, PathBuf};
 
 use super::columns::{f64s, i64s, names, strs, write_table};
 use super::OutputError;
 use crate::engine::draw_control::ControlRecord;
+use crate::engine::value::{BestHod, ValueTable};
 use crate::model::Scene;
-use crate::schema::{CLOSURES, PRODUCTION_TARGET, SCHEDULE};
+use crate::schema::{BEST_HOD, CLOSURES, PRODUCTION_TARGET, SCHEDULE, VALUE};
 
 /// Writes the three tables; returns their paths.
 pub fn write_control(
@@ -71,4 +73,43 @@ pub fn write_control(
         Vec::new(),
     )?;
     Ok(vec![realised, closures, production])
+}
+
+/// Writes `value.parquet` and `best_hod.parquet`; returns their paths.
+pub fn write_value(
+    dir: &Path,
+    scene: &Scene,
+    (v, b): (ValueTable, BestHod),
+) -> Result<Vec<PathBuf>, OutputError> {
+    let dp = &scene.drawpoints.name;
+    let value = dir.join("value.parquet");
+    write_table(
+        &value,
+        &VALUE,
+        vec![
+            ("drawpoint", names(&v.drawpoint, dp)),
+            ("period", i64s(v.period)),
+            ("tonnes", f64s(v.tonnes)),
+            ("hod", f64s(v.hod)),
+            ("value", f64s(v.value)),
+            ("cum_value", f64s(v.cum_value)),
+        ],
+        Vec::new(),
+    )?;
+    let best = dir.join("best_hod.parquet");
+    write_table(
+        &best,
+        &BEST_HOD,
+        vec![
+            ("drawpoint", names(&b.drawpoint, dp)),
+            ("best_hod", f64s(b.best_hod)),
+            ("best_tonnes", f64s(b.best_tonnes)),
+            ("best_value", f64s(b.best_value)),
+            ("best_period", i64s(b.best_period)),
+            ("final_hod", f64s(b.final_hod)),
+            ("final_value", f64s(b.final_value)),
+        ],
+        Vec::new(),
+    )?;
+    Ok(vec![value, best])
 }

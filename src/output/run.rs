@@ -12,6 +12,7 @@
 //! <dir>/trace.parquet                       (only with trace points; output::trace)
 //! <dir>/schedule_realised.parquet, closures.parquet, production_target.parquet
 //!                                            (only under draw control; output::draw_control)
+//! <dir>/value.parquet, best_hod.parquet      (only with [economics]; output::draw_control)
 //! <dir>/vtk/                               (only with outputs.vtk, `run --vtk`; output::vtk)
 //! <dir>/manifest.json                       (written last)
 //! ```
@@ -362,6 +363,9 @@ pub fn write_run_with(
 
     if let Some(rec) = run.control.take() {
         written.extend(super::draw_control::write_control(dir, scene, rec)?);
+    }
+    if let Some(v) = run.value.take() {
+        written.extend(super::draw_control::write_value(dir, scene, v)?);
     }
 
     let path = dir.join("manifest.json");

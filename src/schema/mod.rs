@@ -133,6 +133,8 @@ pub const ALL: &[TableSpec] = &[
     TRACE,
     CLOSURES,
     PRODUCTION_TARGET,
+    VALUE,
+    BEST_HOD,
     AIR_GAP,
     SURFACE,
     STRESS_SECTIONS,

@@ -166,6 +166,37 @@ pub const PRODUCTION_TARGET: TableSpec = TableSpec {
     extra: None,
 };
 
+/// Values per drawpoint-period (`[economics]`, `engine::value`).
+pub const VALUE: TableSpec = TableSpec {
+    name: "value",
+    description: "With [economics]: what each drawpoint-period's draw was worth, tonnes x (sum of price x grade x recovery - cost per tonne), and the drawpoint's cumulative value: its value curve along the height of draw.",
+    fields: &[
+        f("drawpoint", Str, "-", "Drawpoint name", true, &[]),
+        f("period", I64, "-", "Period number", true, &[]),
+        f("tonnes", F64, "t", "Credited tonnes", true, &[]),
+        f("hod", F64, "m", "Height of draw at the period's end", true, &[]),
+        f("value", F64, "currency", "The period's value", true, &[]),
+        f("cum_value", F64, "currency", "Cumulative value at the period's end", true, &[]),
+    ],
+    extra: None,
+};
+
+/// Best height of draw per drawpoint (`[economics]`, `engine::value`).
+pub const BEST_HOD: TableSpec = TableSpec {
+    name: "best_hod",
+    description: "With [economics]: per drawpoint, the height of draw at which its cumulative value peaks (its best height of draw), as the flow model predicts its grades.",
+    fields: &[
+        f("drawpoint", Str, "-", "Drawpoint name", true, &[]),
+        f("best_hod", F64, "m", "Height of draw at the peak of the cumulative value (0 if it never rose above zero)", true, &[]),
+        f("best_tonnes", F64, "t", "Tonnes drawn by then", true, &[]),
+        f("best_value", F64, "currency", "The peak cumulative value", true, &[]),
+        f("best_period", I64, "-", "Period of the peak (-1 if it never rose above zero)", true, &[]),
+        f("final_hod", F64, "m", "Height of draw at the end of the run", true, &[]),
+        f("final_value", F64, "currency", "Cumulative value at the end of the run", true, &[]),
+    ],
+    extra: None,
+};
+
 /// Trace points (`--trace`, `inputs.trace`; `engine::trace`).
 pub const TRACE: TableSpec = TableSpec {
     name: "trace",

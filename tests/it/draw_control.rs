@@ -193,3 +193,24 @@ fn the_realised_schedule_drawn_as_a_schedule_draws_the_same() {
         "the replay's extraction rows differ"
     );
 }
+
+/// The example study of draw control (`data/study_draw.toml`) plans its three strategies:
+/// every variant's scenario loads and passes its checks (`study --plan` runs nothing).
+#[test]
+fn the_example_study_compares_three_strategies() {
+    let out = tempfile::tempdir().unwrap();
+    let r = crate::fixtures::caveflow_out(&[
+        "study",
+        crate::fixtures::repo("data/study_draw.toml")
+            .to_str()
+            .unwrap(),
+        "--out",
+        out.path().to_str().unwrap(),
+        "--plan",
+    ]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let plan = String::from_utf8_lossy(&r.stdout);
+    for case in ["\"schedule\"", "\"uniform\"", "\"shutoff\""] {
+        assert!(plan.contains(case), "{case} not planned: {plan}");
+    }
+}

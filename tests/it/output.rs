@@ -313,6 +313,7 @@ fn fake_run(scene: &Scene) -> RunOutput {
         stress: Vec::new(),
         trace: Default::default(),
         control: None,
+        value: None,
         account: None,
         end: None,
     }

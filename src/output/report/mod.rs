@@ -6,6 +6,7 @@
 //!
 //! `reconcile`'s and `study`'s reports (`analysis`) are built with the same [`Page`].
 
+pub mod draw_control;
 pub mod page;
 pub mod run;
 

@@ -17,7 +17,10 @@
 //!    the drawpoint-periods that drew markers and are `ok` (`charts/correction.svg`; summary
 //!    §3.3: the markers' mass should be the scheduled mass, so c is 1 but for discreteness),
 //!    and the drawpoints short of material.
-//! 6. **Resolution**: the h, marker spacing and draw increment used, and what the
+//! 6. **Draw control** and **value** (`output::report::draw_control`), when the run had
+//!    them: production against target, the closures' plan map, the realised draw's
+//!    uniformity, the best heights of draw and a few cumulative value curves.
+//! 7. **Resolution**: the h, marker spacing and draw increment used, and what the
 //!    speed–accuracy rule (`engine::resolution`) says of them: the spacing as a multiple of
 //!    the scene's default and the whole-draw grade error the sweep's fit expects there.
 //!
@@ -189,6 +192,8 @@ pub fn write_run_report(dir: &Path, r: &RunReport) -> Result<PathBuf, ReportErro
 
     page.heading("Mass balance");
     mass_balance(&mut page, &charts, run, &per)?;
+
+    super::draw_control::section(&mut page, &charts, scene, run, &per.hod)?;
 
     page.heading("Resolution");
     resolution(&mut page, scene, run, &per);
