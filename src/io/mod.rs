@@ -27,6 +27,7 @@ pub use schedule::{
     parse_period_header, read_schedule, read_schedule_bytes, ScheduleEntry, ScheduleForm,
     ScheduleTable,
 };
+pub(crate) use table::file_name;
 pub use table::{sha256_hex, Column, ExtraColumn, Table};
 pub(crate) use trace::read_trace_into;
 pub use trace::TracePoints;

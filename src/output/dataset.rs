@@ -7,7 +7,8 @@
 //! <dir>/dataset/<table>/scenario=<name>/period_group=<first period>/part-0.parquet
 //! ```
 //!
-//! for `<table>` in extraction, imz, drawn, air_gap and surface. Each file holds the same
+//! for `<table>` in extraction, imz, drawn, air_gap and surface (and schedule_realised,
+//! closures, production_target and value when the run has them). Each file holds the same
 //! columns as the flat table, under the same stable names and with the same `unit` and
 //! `description` field metadata, except the partition keys: `scenario` is never a column of
 //! the files, and with `period=` partitions the `period` column lives in the directory

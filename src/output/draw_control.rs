@@ -3,22 +3,25 @@
 //! in the schedule's own long schema, so that it can be run as a fixed schedule),
 //! `<dir>/closures.parquet` and `<dir>/production_target.parquet`; and with `[economics]`
 //! (any strategy) `<dir>/value.parquet` and `<dir>/best_hod.parquet` (`engine::value`).
+//! All but `best_hod` are also written as Hive datasets (`output::run::write_tables`).
 
 use std::path::{Path, PathBuf};
 
-use super::columns::{f64s, i64s, names, strs, write_table};
+use arrow::error::ArrowError;
+use arrow::record_batch::RecordBatch;
+
+use super::columns::{f64s, i64s, names, strs, table_batch, write_table};
 use super::OutputError;
 use crate::engine::draw_control::ControlRecord;
 use crate::engine::value::{BestHod, ValueTable};
 use crate::model::Scene;
 use crate::schema::{BEST_HOD, CLOSURES, PRODUCTION_TARGET, SCHEDULE, VALUE};
 
-/// Writes the three tables; returns their paths.
-pub fn write_control(
-    dir: &Path,
+/// The three tables of draw control as record batches, by name.
+pub fn control_batches(
     scene: &Scene,
     rec: ControlRecord,
-) -> Result<Vec<PathBuf>, OutputError> {
+) -> [(&'static str, Result<RecordBatch, ArrowError>); 3] {
     let dp = &scene.drawpoints.name;
     let n = dp.len().max(1);
     let (mut period, mut drawpoint, mut tonnes) = (Vec::new(), Vec::new(), Vec::new());
@@ -29,9 +32,7 @@ pub fn write_control(
             tonnes.push(t);
         }
     }
-    let realised = dir.join("schedule_realised.parquet");
-    write_table(
-        &realised,
+    let realised = table_batch(
         &SCHEDULE,
         vec![
             ("period", i64s(period)),
@@ -39,11 +40,9 @@ pub fn write_control(
             ("tonnes", f64s(tonnes)),
         ],
         Vec::new(),
-    )?;
+    );
     let c = rec.closures;
-    let closures = dir.join("closures.parquet");
-    write_table(
-        &closures,
+    let closures = table_batch(
         &CLOSURES,
         vec![
             ("drawpoint", names(&c.drawpoint, dp)),
@@ -54,12 +53,10 @@ pub fn write_control(
             ("grade", f64s(c.grade)),
         ],
         Vec::new(),
-    )?;
+    );
     let p = rec.production;
-    let production = dir.join("production_target.parquet");
     let counts = |v: Vec<u32>| i64s(v.into_iter().map(i64::from).collect());
-    write_table(
-        &production,
+    let production = table_batch(
         &PRODUCTION_TARGET,
         vec![
             ("period", i64s(p.period)),
@@ -71,20 +68,18 @@ pub fn write_control(
             ("closed", counts(p.closed)),
         ],
         Vec::new(),
-    )?;
-    Ok(vec![realised, closures, production])
+    );
+    [
+        ("schedule_realised", realised),
+        ("closures", closures),
+        ("production_target", production),
+    ]
 }
 
-/// Writes `value.parquet` and `best_hod.parquet`; returns their paths.
-pub fn write_value(
-    dir: &Path,
-    scene: &Scene,
-    (v, b): (ValueTable, BestHod),
-) -> Result<Vec<PathBuf>, OutputError> {
+/// The `value` table as a record batch.
+pub fn value_batch(scene: &Scene, v: ValueTable) -> Result<RecordBatch, ArrowError> {
     let dp = &scene.drawpoints.name;
-    let value = dir.join("value.parquet");
-    write_table(
-        &value,
+    table_batch(
         &VALUE,
         vec![
             ("drawpoint", names(&v.drawpoint, dp)),
@@ -95,7 +90,12 @@ pub fn write_value(
             ("cum_value", f64s(v.cum_value)),
         ],
         Vec::new(),
-    )?;
+    )
+}
+
+/// Writes `<dir>/best_hod.parquet`; returns its path.
+pub fn write_best_hod(dir: &Path, scene: &Scene, b: BestHod) -> Result<PathBuf, OutputError> {
+    let dp = &scene.drawpoints.name;
     let best = dir.join("best_hod.parquet");
     write_table(
         &best,
@@ -111,5 +111,5 @@ pub fn write_value(
         ],
         Vec::new(),
     )?;
-    Ok(vec![value, best])
+    Ok(best)
 }

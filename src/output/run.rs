@@ -37,7 +37,7 @@ use arrow::record_batch::RecordBatch;
 use super::columns::{f64s, f64s_or_null, i64s, names, states, table_batch};
 use super::dataset::{write_dataset, write_dataset_with, HiveLayout};
 use super::parquet::{write_batch, write_batches, PART_ROWS};
-use super::{Manifest, OutputError};
+use super::{draw_control, Manifest, OutputError};
 use crate::engine::result::{
     AirGapTable, DrawnTable, Extraction, ImzTable, MarkerSnapshot, RunOutput, SurfaceTable,
 };
@@ -259,8 +259,19 @@ pub fn write_drawn_dataset(
     )
 }
 
-/// The tables of a run that are also written as Hive datasets, in the order written.
-pub const DATASET_TABLES: [&str; 5] = ["extraction", "imz", "drawn", "air_gap", "surface"];
+/// The tables of a run that are also written as Hive datasets, in the order written (the
+/// last four only under draw control or with `[economics]`).
+pub const DATASET_TABLES: [&str; 9] = [
+    "extraction",
+    "imz",
+    "drawn",
+    "air_gap",
+    "surface",
+    "schedule_realised",
+    "closures",
+    "production_target",
+    "value",
+];
 
 /// Writes the [`DATASET_TABLES`] of `run`, one table at a time (its batch is made, written
 /// and let go): each as `<flat>/<table>.parquet` when `flat` is given, and with `hive` as a
@@ -303,6 +314,17 @@ pub fn write_tables(
     }
     written.extend(table("air_gap", air_gap_batch(take(&mut run.air_gap)))?);
     written.extend(table("surface", surface_batch(take(&mut run.surface)))?);
+    if let Some(rec) = run.control.take() {
+        for (name, batch) in draw_control::control_batches(scene, rec) {
+            written.extend(table(name, batch)?);
+        }
+    }
+    if let Some((v, best)) = run.value.take() {
+        written.extend(table("value", draw_control::value_batch(scene, v))?);
+        if let Some(dir) = flat {
+            written.push(draw_control::write_best_hod(dir, scene, best)?);
+        }
+    }
     Ok(written)
 }
 
@@ -318,7 +340,7 @@ pub fn write_run(
     write_run_with(dir, scene, run, manifest, None)
 }
 
-/// [`write_run`], and with `hive` also the extraction, imz, drawn, air_gap and surface
+/// [`write_run`], and with `hive` also the [`DATASET_TABLES`]
 /// tables as Hive-partitioned datasets under `<dir>/dataset/` (see
 /// [`dataset`](super::dataset)), from the same record batches as the flat files (the
 /// engine's drawn table: from the same rows, a part at a time).
@@ -359,13 +381,6 @@ pub fn write_run_with(
 
     if !run.trace.trace_id.is_empty() {
         written.push(super::trace::write_trace(dir, scene, take(&mut run.trace))?);
-    }
-
-    if let Some(rec) = run.control.take() {
-        written.extend(super::draw_control::write_control(dir, scene, rec)?);
-    }
-    if let Some(v) = run.value.take() {
-        written.extend(super::draw_control::write_value(dir, scene, v)?);
     }
 
     let path = dir.join("manifest.json");

@@ -214,3 +214,56 @@ fn the_example_study_compares_three_strategies() {
         assert!(plan.contains(case), "{case} not planned: {plan}");
     }
 }
+
+/// The small scene's tables with `blocks` as its block model, loaded under `toml`: the
+/// single problem it has.
+fn only_problem(blocks: &str, toml: &str) -> caveflow::io::Problem {
+    use crate::fixtures::{write_small_scene, SMALL_SCENE_INPUTS};
+    let dir = tempfile::tempdir().unwrap();
+    write_small_scene(dir.path());
+    std::fs::write(dir.path().join("blocks.csv"), blocks).unwrap();
+    let text = format!("{SMALL_SCENE_INPUTS}{toml}");
+    let sc = Scenario::from_toml(&text, "scenario.toml", &[], dir.path())
+        .unwrap_or_else(|e| panic!("{e}"));
+    let p = match caveflow::model::load::load_scene(&sc) {
+        Ok(_) => panic!("the scene loaded but should not have"),
+        Err(p) => p,
+    };
+    assert_eq!(p.0.len(), 1, "{p}");
+    p.0[0].clone()
+}
+
+/// A grade column that `[draw_control]` or `[economics]` names and the block model lacks,
+/// and a target no drawpoint can ever draw, are named with their file, column and rule.
+#[test]
+fn draw_control_settings_the_tables_cannot_meet_are_named() {
+    use crate::fixtures::BLOCKS;
+    let target = "[draw_control]\nstrategy = \"target\"\ntarget_rate = 100.0\n";
+    let p = only_problem(
+        BLOCKS,
+        &format!("{target}shutoff_column = \"mo\"\nshutoff_grade = 0.1\n"),
+    );
+    assert_eq!(
+        p.to_string(),
+        "blocks.csv: column mo: [unknown-grade] draw_control.shutoff_column names grade column `mo`, which the block model does not have; it has: `cu`"
+    );
+    let p = only_problem(BLOCKS, "[economics]\nprice = { au = 50.0 }\n");
+    assert_eq!(p.rule, "unknown-grade");
+    assert!(
+        p.message
+            .starts_with("economics.price names grade column `au`"),
+        "{p}"
+    );
+    // Every block caves in period 99, after the schedule's last (2).
+    let mut late = String::new();
+    for (k, line) in BLOCKS.lines().enumerate() {
+        late.push_str(line);
+        late.push_str(if k == 0 { ",cave_period\n" } else { ",99\n" });
+    }
+    let p = only_problem(&late, target);
+    assert_eq!(p.rule, "never-open");
+    assert_eq!(
+        p.to_string(),
+        "drawpoints.csv: [never-open] draw_control.strategy = \"target\": the ground above no drawpoint caves by the last period (2), so no drawpoint ever opens"
+    );
+}

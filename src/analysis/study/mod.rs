@@ -71,7 +71,8 @@
 //! DIR/report.html, DIR/charts/*.svg       the variants side by side (report::write_study_report)
 //! ```
 //!
-//! for the tables extraction, imz, drawn, air_gap and surface, written by
+//! for the tables extraction, imz, drawn, air_gap and surface (and draw control's and the
+//! value tables of the variants that have them), written by
 //! `output::dataset` exactly as `run` writes its own (`period_group=` beyond 400
 //! periods). A reader of the whole dataset while a study runs, or after one was killed,
 //! also sees the partitions of incomplete variants: keep to the variants of

@@ -167,12 +167,11 @@ pub fn load_scene(sc: &Scenario) -> Result<LoadedScene, Problems> {
     if let (Some(t), Some(b)) = (&trace, &blocks) {
         l.check_trace(t, b);
     }
-    let blocks_file = i.blocks.display().to_string();
     if let Some(b) = &blocks {
-        l.check_grade_names(sc, b, &blocks_file);
+        l.check_grade_names(sc, b, &crate::io::file_name(&i.blocks));
     }
     if let (Some(b), Some(d), Some(p)) = (&blocks, &drawpoints, &periods) {
-        l.check_some_open(sc, b, d, p, &i.drawpoints.display().to_string());
+        l.check_some_open(sc, b, d, p, &crate::io::file_name(&i.drawpoints));
     }
     let model_tonnes = blocks.as_ref().and_then(in_situ_tonnes);
     let schedule = match (&schedule, &drawpoints, &periods) {

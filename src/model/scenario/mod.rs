@@ -254,7 +254,8 @@ pub struct Outputs {
     /// about a quarter, a half and three quarters of the scheduled tonnes, and the last
     /// period (`Scene::moments`).
     pub section_periods: Vec<i64>,
-    /// Also write extraction, imz, drawn, air_gap and surface as Hive-partitioned Parquet
+    /// Also write extraction, imz, drawn, air_gap and surface (and draw control's and the
+    /// value tables, when the run has them) as Hive-partitioned Parquet
     /// datasets under `<dir>/dataset/<table>/scenario=<name>/period=<N>/` for BI tools
     /// (`output::dataset`). Default true: BI tools read them as they are. They hold the
     /// same rows as the flat tables again; turn them off for mine-scale runs short of disk.
