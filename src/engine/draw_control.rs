@@ -4,8 +4,9 @@
 //!
 //! At the start of a period the production target (`target_rate` × the period's days) is
 //! shared among the **open** drawpoints: a drawpoint opens once the ground above its brow
-//! has caved (the block model's cave period, as a scheduled drawpoint is drawn) and stays
-//! open until a closure rule closes it. Each open drawpoint may take at most its rate
+//! has caved (the block model's cave period, as a scheduled drawpoint is drawn) and, where
+//! the drawpoints table gives one, its `open_period` has come (a drawbell opened before
+//! the cave reaches it would draw nothing), and stays open until a closure rule closes it. Each open drawpoint may take at most its rate
 //! limit: `max_rate` × days × the draw-rate curve's share at its height of draw over its
 //! column (the height from its brow to the top of the block model). First every open
 //! drawpoint takes its minimum (`min_rate` × days, within its limit, the target shared
@@ -197,8 +198,13 @@ impl Engine<'_> {
         let hod: Vec<f64> = (0..n)
             .map(|d| self.cum[d] / self.hod_density_area[d].max(1e-12))
             .collect();
+        let dp = &scene.drawpoints;
         let open: Vec<bool> = (0..n)
-            .map(|d| rec.closed[d].is_none() && bm.flowable(self.drawpoint_block[d], period))
+            .map(|d| {
+                rec.closed[d].is_none()
+                    && dp.opens_at(d).is_none_or(|o| period >= o)
+                    && bm.flowable(self.drawpoint_block[d], period)
+            })
             .collect();
         let limit: Vec<f64> = (0..n)
             .map(|d| match dc.max_rate {

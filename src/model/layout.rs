@@ -19,6 +19,9 @@ pub struct Drawpoints {
     pub width: Vec<f64>,
     /// Reporting zone ("" when not given).
     pub zone: Vec<String>,
+    /// Under draw control, the first period in which the drawpoint may open (None: once
+    /// its ground has caved). Empty when the table has no such column.
+    pub open_period: Vec<Option<i64>>,
 }
 
 impl Drawpoints {
@@ -29,6 +32,11 @@ impl Drawpoints {
     /// True when empty.
     pub fn is_empty(&self) -> bool {
         self.name.is_empty()
+    }
+    /// The first period in which drawpoint `d` may open under draw control (None: no
+    /// constraint beyond its ground having caved).
+    pub fn opens_at(&self, d: usize) -> Option<i64> {
+        self.open_period.get(d).copied().flatten()
     }
     /// Index of a drawpoint by name.
     pub fn find(&self, name: &str) -> Option<usize> {

@@ -98,6 +98,7 @@ impl UniformBox {
             z: vec![0.0; nd],
             width: self.drawpoints.iter().map(|d| d.2).collect(),
             zone: vec![String::new(); nd],
+            open_period: Vec::new(),
         };
         let periods = Periods {
             id: (1..=self.periods as i64).collect(),

@@ -53,6 +53,7 @@ pub const DRAWPOINTS: TableSpec = TableSpec {
         f("bell_type", Str, "-", "Drawbell type", false, &["DBType"]),
         f("width", F64, "m", "Opening width: the diameter of the lowest IMZ disk (default: the drawbell's width, else the scenario default)", false, &["DDWidth"]),
         f("zone", Str, "-", "Reporting zone (e.g. lithology domain) used by reconcile and calibrate", false, &["Zone", "Domain"]),
+        f("open_period", I64, "-", "Draw control (strategy = \"target\"): the first period in which the drawpoint may open (its ground must also have caved); empty: once its ground has caved", false, &["OpenPeriod"]),
     ],
     extra: None,
 };

@@ -267,3 +267,30 @@ fn draw_control_settings_the_tables_cannot_meet_are_named() {
         "drawpoints.csv: [never-open] draw_control.strategy = \"target\": the ground above no drawpoint caves by the last period (2), so no drawpoint ever opens"
     );
 }
+
+/// A drawpoint with an `open_period` draws nothing before it, and the others take its
+/// share meanwhile.
+#[test]
+fn a_drawpoint_opens_at_its_open_period() {
+    let (mut scene, mut sc) = demo_scene(5);
+    let n = scene.drawpoints.len();
+    scene.drawpoints.open_period = (0..n).map(|d| (d % 2 == 0).then_some(4)).collect();
+    sc.draw_control = target(2000.0);
+    let out = run(&scene, &sc);
+    for p in 0..scene.periods.len() {
+        let late: f64 = (0..n)
+            .step_by(2)
+            .map(|d| realised(&out, &scene, p, d))
+            .sum();
+        let early: f64 = (1..n)
+            .step_by(2)
+            .map(|d| realised(&out, &scene, p, d))
+            .sum();
+        if scene.periods.id[p] < 4 {
+            assert_eq!(late, 0.0, "period index {p}");
+            assert!(early > 0.0);
+        } else {
+            assert!(late > 0.0, "period index {p}");
+        }
+    }
+}

@@ -4,8 +4,9 @@
 //! # Rules
 //! - `unknown-grade`: the shut-off column or a priced grade is not a grade column of the
 //!   block model (the message lists those it has).
-//! - `never-open`: under the target strategy, no drawpoint's ground ever caves within the
-//!   periods, so no drawpoint ever opens and the target could never be drawn.
+//! - `never-open`: under the target strategy, no drawpoint's ground caves (and its
+//!   `open_period` comes) within the periods, so no drawpoint ever opens and the target
+//!   could never be drawn.
 
 use super::Loader;
 use crate::model::{BlockModel, Drawpoints, Periods, Scenario};
@@ -53,8 +54,10 @@ impl Loader {
             return;
         };
         let opens = (0..dp.len()).any(|d| {
-            bm.locate([dp.x[d], dp.y[d], dp.z[d] + 1e-6])
-                .is_some_and(|b| bm.flowable(b, last))
+            dp.opens_at(d).is_none_or(|o| o <= last)
+                && bm
+                    .locate([dp.x[d], dp.y[d], dp.z[d] + 1e-6])
+                    .is_some_and(|b| bm.flowable(b, last))
         });
         if !opens {
             self.problem(

@@ -83,6 +83,7 @@ impl Loader {
             t.str("bell_type").unwrap_or(&empty),
         );
         let zone = t.str("zone").unwrap_or(&empty);
+        let open = t.i64("open_period");
         let mut seen: HashMap<&str, usize> = HashMap::new();
         let mut defaulted = 0;
         for i in 0..names.len().min(x.len()).min(y.len()).min(z.len()) {
@@ -180,6 +181,9 @@ impl Loader {
             d.z.push(z[i]);
             d.width.push(w);
             d.zone.push(zone.get(i).cloned().unwrap_or_default());
+            if let Some(open) = open {
+                d.open_period.push(open.get(i).copied().flatten());
+            }
         }
         self.overlapping_openings(t, &d);
         if defaulted > 0 {
