@@ -2,7 +2,8 @@
 //! decided from the state of the draw, as a mine's draw control decides them, instead of
 //! read from a fixed schedule.
 //!
-//! At the start of a period the production target (`target_rate` × the period's days) is
+//! At the start of a period the production target (`target_rate` × the period's days, or
+//! the period's row of the target table, `draw_control.target_table`) is
 //! shared among the **open** drawpoints: a drawpoint opens once the ground above its brow
 //! has caved (the block model's cave period, as a scheduled drawpoint is drawn) and, where
 //! the drawpoints table gives one, its `open_period` has come (a drawbell opened before
@@ -229,7 +230,10 @@ impl Engine<'_> {
                 !near.is_empty() && hod[d] - near.iter().sum::<f64>() / near.len() as f64 > tol
             })
             .collect();
-        let target = dc.target_rate.unwrap_or(0.0) * days;
+        let target = match &scene.target {
+            Some(t) => t[p],
+            None => dc.target_rate.unwrap_or(0.0) * days,
+        };
         let (row, shortfall) = plan(target, &open, &limit, &min, &ahead);
         rec.realised.extend_from_slice(&row);
         let pr = &mut rec.production;

@@ -309,6 +309,7 @@ pub fn henderson(scale: DemoScale, seed: u64) -> Scene {
         drawpoints: dp,
         periods,
         schedule,
+        target: None,
     }
 }
 

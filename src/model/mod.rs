@@ -25,6 +25,9 @@ pub struct Scene {
     pub periods: Periods,
     /// Tonnes per period per drawpoint.
     pub schedule: Schedule,
+    /// Draw control's production target per period index, t, when a target table was
+    /// given (`draw_control.target_table`); None: `draw_control.target_rate`.
+    pub target: Option<Vec<f64>>,
 }
 
 impl Scene {
@@ -40,6 +43,9 @@ impl Scene {
         }
         let nd = self.schedule.n_drawpoints;
         self.schedule.tonnes.truncate(n * nd);
+        if let Some(t) = self.target.as_mut() {
+            t.truncate(n);
+        }
     }
 }
 

@@ -115,6 +115,7 @@ impl UniformBox {
             drawpoints,
             periods,
             schedule,
+            target: None,
         }
     }
 }

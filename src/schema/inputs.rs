@@ -137,6 +137,17 @@ pub const SCHEDULE: TableSpec = TableSpec {
     extra: None,
 };
 
+/// Draw control's production target per period (`draw_control.target_table`).
+pub const TARGET: TableSpec = TableSpec {
+    name: "target",
+    description: "Draw control (strategy = \"target\"): the production target of each period, shared among the open drawpoints. A period the table does not list has no target (nothing is drawn in it).",
+    fields: &[
+        f("period", I64, "-", "Period number (periods.period)", true, &["Period"]),
+        f("tonnes", F64, "t", "The period's production target", true, &["Tonnes", "target"]),
+    ],
+    extra: None,
+};
+
 /// Production records for back-analysis.
 pub const PRODUCTION: TableSpec = TableSpec {
     name: "production",

@@ -123,6 +123,7 @@ pub const ALL: &[TableSpec] = &[
     DRAWBELLS,
     PERIODS,
     SCHEDULE,
+    TARGET,
     PRODUCTION,
     RECONCILE_METRICS,
     RECONCILE_ROWS,

@@ -156,7 +156,7 @@ pub const PRODUCTION_TARGET: TableSpec = TableSpec {
     description: "Draw control (strategy = \"target\"): per period, the production target, the tonnes shared among the open drawpoints, the tonnes credited, and what no open drawpoint could take.",
     fields: &[
         f("period", I64, "-", "Period number", true, &[]),
-        f("target_tonnes", F64, "t", "Target: target_rate x the period's days", true, &[]),
+        f("target_tonnes", F64, "t", "Target: target_rate x the period's days, or the target table's row", true, &[]),
         f("planned_tonnes", F64, "t", "Tonnes shared among the open drawpoints (the realised schedule's period total)", true, &[]),
         f("tonnes", F64, "t", "Tonnes credited (below planned where a drawpoint could not deliver its share)", true, &[]),
         f("shortfall_tonnes", F64, "t", "Target no open drawpoint could take under its rate limit", true, &[]),

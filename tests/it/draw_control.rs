@@ -294,3 +294,40 @@ fn a_drawpoint_opens_at_its_open_period() {
         }
     }
 }
+
+/// A target table gives each period's target; its bad rows are named.
+#[test]
+fn a_target_table_sets_each_periods_target_and_its_bad_rows_are_named() {
+    use crate::fixtures::{write_small_scene, SMALL_SCENE_INPUTS};
+    let dir = tempfile::tempdir().unwrap();
+    write_small_scene(dir.path());
+    let load = |table: &str| {
+        std::fs::write(dir.path().join("target.csv"), table).unwrap();
+        let text = format!(
+            "{SMALL_SCENE_INPUTS}[draw_control]\nstrategy = \"target\"\ntarget_table = \"target.csv\"\n"
+        );
+        let sc = Scenario::from_toml(&text, "scenario.toml", &[], dir.path()).unwrap();
+        (caveflow::model::load::load_scene(&sc), sc)
+    };
+    let (loaded, sc) = load("period,tonnes\n1,120\n2,80\n");
+    let loaded = loaded.unwrap_or_else(|p| panic!("{p}"));
+    assert_eq!(loaded.scene.target, Some(vec![120.0, 80.0]));
+    let out = run(&loaded.scene, &sc);
+    let planned = &out.control.as_ref().unwrap().production.planned_tonnes;
+    assert_eq!(planned, &vec![120.0, 80.0]);
+    let (loaded, _) = load("period,tonnes\n1,120\n");
+    let w = &loaded.unwrap_or_else(|p| panic!("{p}")).warnings;
+    assert!(w.iter().any(|w| w.rule == "no-target"), "{w:?}");
+    let (err, _) = load("period,tonnes\n1,-5\n3,10\n1,4\n");
+    let Err(p) = err else {
+        panic!("the bad rows loaded")
+    };
+    let s = p.to_string();
+    for line in [
+        "target.csv: row 1, column tonnes: [negative] -5 tonnes: a target must be a finite number, not negative",
+        "target.csv: row 2, column period: [unknown-period] period 3 is not in the periods table (1–2)",
+        "target.csv: row 3, column period: [duplicate-id] period 1 appears more than once",
+    ] {
+        assert!(s.contains(line), "expected `{line}` in {s}");
+    }
+}

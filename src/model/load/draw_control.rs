@@ -4,11 +4,16 @@
 //! # Rules
 //! - `unknown-grade`: the shut-off column or a priced grade is not a grade column of the
 //!   block model (the message lists those it has).
+//! - The target table (`draw_control.target_table`): each period once (`duplicate-id`),
+//!   a period of the periods table (`unknown-period`), tonnes finite and not negative
+//!   (`negative`);
+//!   a period it does not list has no target, which a warning counts (`no-target`).
 //! - `never-open`: under the target strategy, no drawpoint's ground caves (and its
 //!   `open_period` comes) within the periods, so no drawpoint ever opens and the target
 //!   could never be drawn.
 
 use super::Loader;
+use crate::io::{InputWarning, Table};
 use crate::model::{BlockModel, Drawpoints, Periods, Scenario};
 
 impl Loader {
@@ -70,5 +75,61 @@ impl Loader {
                 ),
             );
         }
+    }
+
+    /// The target table's tonnes per period index (see the module's rules).
+    pub(super) fn target(&mut self, t: &Table, periods: &Periods) -> Vec<f64> {
+        let file = t.file.as_str();
+        let mut out = vec![0.0; periods.len()];
+        let mut listed = vec![false; periods.len()];
+        let (Some(ids), Some(tonnes)) = (t.i64("period"), t.f64("tonnes")) else {
+            return out;
+        };
+        for (i, (id, &x)) in ids.iter().zip(tonnes).enumerate() {
+            let row = Some(t.row(i));
+            let Some(id) = *id else { continue };
+            let Some(k) = periods.find(id) else {
+                self.problem(
+                    file,
+                    row,
+                    Some(t.header("period")),
+                    "unknown-period",
+                    format!(
+                        "period {id} is not in the periods table ({})",
+                        periods.span()
+                    ),
+                );
+                continue;
+            };
+            if listed[k] {
+                self.problem(
+                    file,
+                    row,
+                    Some(t.header("period")),
+                    "duplicate-id",
+                    format!("period {id} appears more than once"),
+                );
+            }
+            if x < 0.0 || x.is_infinite() {
+                self.problem(
+                    file,
+                    row,
+                    Some(t.header("tonnes")),
+                    "negative",
+                    format!("{x} tonnes: a target must be a finite number, not negative"),
+                );
+            }
+            listed[k] = true;
+            out[k] = if x.is_finite() { x } else { 0.0 };
+        }
+        let missing = listed.iter().filter(|&&l| !l).count();
+        if missing > 0 {
+            self.warnings.push(InputWarning::new(
+                file,
+                "no-target",
+                format!("{missing} period(s) have no target row; nothing is drawn in them"),
+            ));
+        }
+        out
     }
 }

@@ -52,7 +52,7 @@ use crate::io::{
     ScheduleForm, ScheduleTable, Table,
 };
 use crate::model::{Scenario, Scene};
-use crate::schema::{TableSpec, BLOCK_MODEL, DRAWBELLS, DRAWPOINTS, PERIODS};
+use crate::schema::{TableSpec, BLOCK_MODEL, DRAWBELLS, DRAWPOINTS, PERIODS, TARGET};
 
 use blocks::in_situ_tonnes;
 
@@ -111,6 +111,11 @@ pub fn load_scene(sc: &Scenario) -> Result<LoadedScene, Problems> {
     let periods = i.periods.as_ref().map(|p| l.read("periods", p, &PERIODS));
     let schedule = l.read_schedule(&i.schedule);
     let trace = i.trace.as_ref().and_then(|p| l.read_trace(p));
+    let target = sc
+        .draw_control
+        .target_table
+        .as_ref()
+        .map(|p| l.read("target", p, &TARGET));
 
     let blocks = blocks.and_then(|t| {
         let before = l.problems.total();
@@ -173,6 +178,10 @@ pub fn load_scene(sc: &Scenario) -> Result<LoadedScene, Problems> {
     if let (Some(b), Some(d), Some(p)) = (&blocks, &drawpoints, &periods) {
         l.check_some_open(sc, b, d, p, &crate::io::file_name(&i.drawpoints));
     }
+    let target = match (target, &periods) {
+        (Some(Some(t)), Some(p)) => Some(l.target(&t, p)),
+        _ => None,
+    };
     let model_tonnes = blocks.as_ref().and_then(in_situ_tonnes);
     let schedule = match (&schedule, &drawpoints, &periods) {
         (Some(s), Some(d), Some(p)) => Some(l.schedule(s, d, p, model_tonnes)),
@@ -191,6 +200,7 @@ pub fn load_scene(sc: &Scenario) -> Result<LoadedScene, Problems> {
                     drawpoints,
                     periods,
                     schedule,
+                    target,
                 },
                 inputs,
                 warnings,

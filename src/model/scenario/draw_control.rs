@@ -29,6 +29,9 @@ pub struct DrawControl {
     pub strategy: Strategy,
     /// The production target, t/day: a period's target is this times its days.
     pub target_rate: Option<f64>,
+    /// The production target per period instead: a table (CSV or Parquet) of period and
+    /// tonnes (schema `target`), relative to the scenario file.
+    pub target_table: Option<std::path::PathBuf>,
     /// The most one drawpoint draws, t/day.
     pub max_rate: Option<f64>,
     /// The least an open drawpoint draws, t/day, when the target leaves enough (0: none).
@@ -89,6 +92,7 @@ impl DrawControl {
         if !self.is_target() {
             let set = [
                 ("target_rate", self.target_rate.is_some()),
+                ("target_table", self.target_table.is_some()),
                 ("max_rate", self.max_rate.is_some()),
                 ("min_rate", self.min_rate != 0.0),
                 ("rate_curve", !self.rate_curve.is_empty()),
@@ -109,13 +113,22 @@ impl DrawControl {
             }
             return Ok(());
         }
-        let Some(rate) = self.target_rate else {
-            return bad(
-                &key("target_rate"),
-                "must be given with strategy = \"target\" (the production target, t/day)".into(),
-            );
-        };
-        SettingError::positive(&key("target_rate"), Some(rate))?;
+        match (self.target_rate, &self.target_table) {
+            (None, None) => {
+                return bad(
+                    &key("target_rate"),
+                    "or draw_control.target_table must be given with strategy = \"target\" (the production target)".into(),
+                )
+            }
+            (Some(_), Some(_)) => {
+                return bad(
+                    &key("target_table"),
+                    "and draw_control.target_rate are two ways to give the target: give one".into(),
+                )
+            }
+            _ => {}
+        }
+        SettingError::positive(&key("target_rate"), self.target_rate)?;
         SettingError::positive(&key("max_rate"), self.max_rate)?;
         if !(self.min_rate.is_finite() && self.min_rate >= 0.0) {
             return bad(

@@ -177,6 +177,9 @@ impl Scenario {
         if let Some(p) = self.inputs.trace.as_mut() {
             abs(p);
         }
+        if let Some(p) = self.draw_control.target_table.as_mut() {
+            abs(p);
+        }
         abs(&mut self.outputs.dir);
     }
 
