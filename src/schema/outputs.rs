@@ -374,6 +374,8 @@ pub const STUDY_SUMMARY: TableSpec = TableSpec {
         f("dilution_entry", F64, "t", "Mean over the drawpoints whose waste share reaches 10% of the cumulative tonnes at which it does (null when none does)", false, &[]),
         f("diluted_drawpoints", I64, "-", "Drawpoints whose waste share reached 10%", true, &[]),
         f("short_share", F64, "-", "Share of the scheduled (not idle) drawpoint-periods that were short", false, &[]),
+        f("value", F64, "currency", "The draw's value with [economics] (null without)", false, &[]),
+        f("closed_drawpoints", I64, "-", "Drawpoints closed by draw control's closure rules (null without draw control)", false, &[]),
         f("periods", I64, "-", "Periods run", true, &[]),
         f("wall_s", F64, "s", "Wall time of the engine run", true, &[]),
     ],

@@ -49,6 +49,12 @@ pub struct SummaryRow {
     pub diluted_drawpoints: u64,
     /// Share of the scheduled drawpoint-periods (not idle) that were short.
     pub short_share: Option<f64>,
+    /// The draw's value (`[economics]`, `engine::value`); None without economics.
+    #[serde(default)]
+    pub value: Option<f64>,
+    /// Drawpoints closed by draw control's closure rules; None without draw control.
+    #[serde(default)]
+    pub closed_drawpoints: Option<u64>,
     /// Periods run.
     pub periods: u64,
     /// Wall time of the engine run, s.
@@ -135,6 +141,11 @@ impl SummaryRow {
             dilution_entry: finite(entries.iter().sum::<f64>() / entries.len() as f64),
             diluted_drawpoints: entries.len() as u64,
             short_share: finite(short as f64 / scheduled as f64),
+            value: out.value.as_ref().map(|(_, b)| b.final_value.iter().sum()),
+            closed_drawpoints: out
+                .control
+                .as_ref()
+                .map(|c| c.closures.drawpoint.len() as u64),
             periods: scene.periods.len() as u64,
             wall_s,
         }
@@ -169,6 +180,15 @@ pub fn write_summary(
         ("dilution_entry", f(&|r| r.dilution_entry)),
         ("diluted_drawpoints", i(&|r| r.diluted_drawpoints as i64)),
         ("short_share", f(&|r| r.short_share)),
+        ("value", f(&|r| r.value)),
+        (
+            "closed_drawpoints",
+            Arc::new(Int64Array::from(
+                rows.iter()
+                    .map(|r| r.closed_drawpoints.map(|n| n as i64))
+                    .collect::<Vec<_>>(),
+            )),
+        ),
         ("periods", i(&|r| r.periods as i64)),
         ("wall_s", f(&|r| Some(r.wall_s))),
     ];
