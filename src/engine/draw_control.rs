@@ -269,24 +269,34 @@ impl Engine<'_> {
             .as_ref()
             .and_then(|c| bm.grade_names.iter().position(|g| g == c));
         let row = self.schedule.period(p);
+        let graded = shut_col.is_some() || dc.max_dilation.is_some() || dc.best_hod;
         let mut closing = Vec::new();
         for (d, &drew) in row.iter().enumerate() {
             if drew <= 0.0 || rec.closed[d].is_some() {
                 continue;
             }
-            // What it drew in the period, as known at its end.
-            let stream = &self.streams[d];
-            let (lo, hi) = (self.sched_cum[d], self.sched_cum[d] + drew);
-            let mut t = Tally::new(bm.grades.len(), bm.lithology_names.len());
-            for r in stream.window(lo, hi, crediting::GRADE_MARKERS) {
-                self.contribute(&self.drawn.m, stream.row[r] as usize, &mut t);
-            }
-            if t.mass <= 0.0 {
-                continue;
-            }
-            let grade: Vec<f64> = t.grade.iter().map(|g| g / t.mass).collect();
-            let dilution = t.waste / t.mass;
+            // What it drew in the period, as known at its end: its grades and waste share
+            // (read only where a rule or a closure needs them).
+            let drawn = || {
+                let stream = &self.streams[d];
+                let (lo, hi) = (self.sched_cum[d], self.sched_cum[d] + drew);
+                let mut t = Tally::new(bm.grades.len(), bm.lithology_names.len());
+                for r in stream.window(lo, hi, crediting::GRADE_MARKERS) {
+                    self.contribute(&self.drawn.m, stream.row[r] as usize, &mut t);
+                }
+                (t.mass > 0.0).then(|| {
+                    let grade: Vec<f64> = t.grade.iter().map(|g| g / t.mass).collect();
+                    (grade, t.waste / t.mass)
+                })
+            };
             let hod = self.cum[d] / self.hod_density_area[d].max(1e-12);
+            let high = dc.max_hod.is_some_and(|m| hod >= m);
+            // No marker drawn: nothing to grade (the height-of-draw limit still closes).
+            let (grade, dilution) = match (graded || high).then(drawn).flatten() {
+                Some(g) => g,
+                None if high => (vec![f64::NAN; bm.grades.len()], f64::NAN),
+                None => continue,
+            };
             let low = shut_col.is_some_and(|g| grade[g] < dc.shutoff_grade.unwrap_or(0.0));
             rec.low[d] = if low { rec.low[d] + 1 } else { 0 };
             let value = |e: &Economics| e.value(&bm.grade_names, &grade, drew);
@@ -294,7 +304,7 @@ impl Engine<'_> {
                 Some(0)
             } else if dc.max_dilation.is_some_and(|m| dilution > m) {
                 Some(1)
-            } else if dc.max_hod.is_some_and(|m| hod >= m) {
+            } else if high {
                 Some(2)
             } else if dc.best_hod
                 && self
