@@ -331,3 +331,36 @@ fn a_target_table_sets_each_periods_target_and_its_bad_rows_are_named() {
         assert!(s.contains(line), "expected `{line}` in {s}");
     }
 }
+
+/// The height-of-draw limit closes a drawpoint in the first period that takes it to the
+/// limit, with its height of draw recorded.
+#[test]
+fn the_height_of_draw_limit_closes_at_the_limit() {
+    let (scene, mut sc) = demo_scene(6);
+    sc.draw_control = DrawControl {
+        max_hod: Some(8.0),
+        ..target(3000.0)
+    };
+    let out = run(&scene, &sc);
+    let rec = out.control.as_ref().unwrap();
+    let ex = &out.extraction;
+    assert!(
+        rec.closures.drawpoint.len() > 10,
+        "{:?}",
+        rec.closures.drawpoint
+    );
+    for (k, &d) in rec.closures.drawpoint.iter().enumerate() {
+        assert_eq!(rec.closures.reason[k], "hod_limit");
+        assert!(rec.closures.hod[k] >= 8.0);
+        // Below the limit at the end of every earlier period.
+        let period = rec.closures.period[k];
+        for r in (0..ex.drawpoint.len()).filter(|&r| ex.drawpoint[r] == d && ex.period[r] < period)
+        {
+            assert!(
+                ex.hod[r] < 8.0,
+                "drawpoint {d} passed the limit in period {}",
+                ex.period[r]
+            );
+        }
+    }
+}
