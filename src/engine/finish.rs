@@ -14,6 +14,9 @@ use super::{
     RunWarning, WarningRule,
 };
 
+/// Extraction rows whose drawn figures are worked out at a time (`Engine::read_streams`).
+const READ_ROWS: usize = 1 << 16;
+
 impl Engine<'_> {
     /// Marker states now: every moving and drawn marker, sorted by id.
     pub fn snapshot(&self, period: i64) -> MarkerSnapshot {
@@ -49,23 +52,29 @@ impl Engine<'_> {
                 before[p + 1][d] = before[p][d] + row[d];
             }
         }
-        let ex = &self.out.extraction;
-        let derived: Vec<crediting::Derived> = (0..ex.drawpoint.len())
-            .into_par_iter()
-            .map(|k| {
-                let d = ex.drawpoint[k] as usize;
-                let p = at[&ex.period[k]];
-                let stream = &self.streams[d];
-                let rows = stream.window(before[p][d], before[p + 1][d], crediting::GRADE_MARKERS);
-                let mut t = Tally::new(bm.grades.len(), bm.lithology_names.len());
-                for r in rows {
-                    self.contribute(&self.drawn.m, stream.row[r] as usize, &mut t);
-                }
-                t.derived()
-            })
-            .collect();
-        for (k, dv) in derived.into_iter().enumerate() {
-            dv.set(&mut self.out.extraction, k);
+        // A part of the rows at a time: at mine scale the rows' derived figures held
+        // whole would be a few hundred megabytes at the run's peak of memory.
+        let n = self.out.extraction.drawpoint.len();
+        for start in (0..n).step_by(READ_ROWS) {
+            let ex = &self.out.extraction;
+            let derived: Vec<crediting::Derived> = (start..(start + READ_ROWS).min(n))
+                .into_par_iter()
+                .map(|k| {
+                    let d = ex.drawpoint[k] as usize;
+                    let p = at[&ex.period[k]];
+                    let stream = &self.streams[d];
+                    let (lo, hi) = (before[p][d], before[p + 1][d]);
+                    let rows = stream.window(lo, hi, crediting::GRADE_MARKERS);
+                    let mut t = Tally::new(bm.grades.len(), bm.lithology_names.len());
+                    for r in rows {
+                        self.contribute(&self.drawn.m, stream.row[r] as usize, &mut t);
+                    }
+                    t.derived()
+                })
+                .collect();
+            for (k, dv) in derived.into_iter().enumerate() {
+                dv.set(&mut self.out.extraction, start + k);
+            }
         }
     }
 
