@@ -31,6 +31,8 @@ pub enum Phase {
     Mobilised,
     /// The air gap per block column.
     AirGap,
+    /// The fill of the drawing drawpoints' lowest disks (`engine::fill`).
+    Fill,
     /// The rest of a period's end: catching lagging markers up, extraction rows, IMZ rows,
     /// surface, snapshots, the rows' sort.
     PeriodEnd,
@@ -41,7 +43,7 @@ pub enum Phase {
 }
 
 /// Every phase, in order.
-pub const PHASES: [Phase; 11] = [
+pub const PHASES: [Phase; 12] = [
     Phase::Growth,
     Phase::Engulf,
     Phase::Grids,
@@ -50,6 +52,7 @@ pub const PHASES: [Phase; 11] = [
     Phase::Crediting,
     Phase::Mobilised,
     Phase::AirGap,
+    Phase::Fill,
     Phase::PeriodEnd,
     Phase::Finish,
     Phase::Counting,
@@ -67,6 +70,7 @@ impl Phase {
             Phase::Crediting => "crediting",
             Phase::Mobilised => "mobilised sums",
             Phase::AirGap => "air gap",
+            Phase::Fill => "lowest disks' fill",
             Phase::PeriodEnd => "period end",
             Phase::Finish => "finish",
             Phase::Counting => "counting (account only)",

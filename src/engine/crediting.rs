@@ -19,8 +19,8 @@
 //! the draw has not yet reached that much. Otherwise it really could not deliver (its IMZ
 //! draws air: its column is drawn out, with the ground around it standing where rilling is
 //! off; or it is held under uncaved ground and has drained), and it is credited the marker
-//! tonnes it drew, `short`, with the reason; so is a drawpoint whose ground has not caved,
-//! which draws nothing. A trailing window of N markers sees a deficit δ only once
+//! tonnes it drew, `short`, with the reason read from the state of its lowest disks
+//! (`engine::fill`); so is a drawpoint whose ground has not caved, which draws nothing. A trailing window of N markers sees a deficit δ only once
 //! δ > 3/√N, so a drawpoint can draw a steady share short of its schedule and pass every
 //! window: on the mine scene at 1.65 m markers, drawpoints under uncaved ground drew 0.80
 //! of their schedule in markers for over a year, every day credited in full. So the credits

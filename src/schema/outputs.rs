@@ -34,7 +34,8 @@ pub const EXTRACTION: TableSpec = TableSpec {
         f("rilled_share", F64, "-", "Mass share of the drawn material that rilled on the free surface (null when no marker was drawn)", false, &[]),
         f("rill_distance", F64, "m", "Mass-weighted mean horizontal distance the rilled material rilled (null when none rilled)", false, &[]),
         f("status", Str, "-", "ok | short (could not deliver the schedule) | idle (nothing scheduled)", true, &[]),
-        f("short_reason", Str, "-", "Why a short row could not deliver: uncaved (the ground above the drawpoint has not caved) | blocked (its IMZ is held under uncaved ground and has drained into the air gap) | exhausted (its column has run out); empty otherwise", true, &[]),
+        f("short_reason", Str, "-", "Why a short row could not deliver, from the fill of the drawpoint's lowest disks: uncaved (the ground above the drawpoint has not caved) | blocked (fill below 0.726 under an air gap: its column has drained into the air gap under uncaved ground) | exhausted (fill below 0.726, no air gap: its column is drawn out) | lagging (fill at least 0.726: the material is there, its markers ran behind the credits); empty otherwise", true, &[]),
+        f("fill", F64, "-", "Fill of the drawpoint's lowest disks at the end of the period: the volume at the dilated porosity n1 of the markers inside them over the disks' volume, over the lowest disks that hold the period's schedule and 120 markers (about 0.97 where the column is full; below 0.726 it is running out). Null where it did not draw or its IMZ is still smaller than that", false, &[]),
     ],
     extra: Some(ExtraColumns {
         pattern: "<grade name> | lith_<lithology>",
