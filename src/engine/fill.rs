@@ -23,17 +23,18 @@
 //! above them. The fill is computed for every drawpoint that drew, at the end of each
 //! period (the mine scene's account: 4–5% of the engine's time, `docs::performance`).
 //!
-//! # Short reasons
-//! A period credited less than its schedule (`crediting`) is `short`, for one of these:
+//! # Crediting and short reasons
+//! A drawpoint whose fill is at least [`EXHAUSTED_FILL`] (or not yet judged) can feed its
+//! schedule and is credited it (`crediting`, "Tonnes"); one whose fill is lower is
+//! running out, and is credited by its markers. So a period is `short` for one of these:
 //! - `uncaved`: the ground above the drawpoint has not caved; nothing is drawn.
 //! - `blocked`: the fill is below [`EXHAUSTED_FILL`] and the IMZ is held under uncaved
 //!   ground with an air gap above it: its column has drained into the air gap.
 //! - `exhausted`: the fill is below [`EXHAUSTED_FILL`] with no air gap: its column is drawn
 //!   out (to the free surface, or to what the ground around it feeds).
-//! - `lagging`: the fill is at least [`EXHAUSTED_FILL`] (or not yet judged), so the
-//!   material to feed the schedule is there, but the markers drawn ran behind the credits
-//!   (the trailing window or the budget of `crediting`): a marker effect, not the ground.
-//!   A young IMZ held under uncaved ground with an air gap is `blocked`.
+//!
+//! A drawpoint whose markers run behind its credits while its column is full enough is
+//! not short: the run's warnings name it with the ratio (`crediting::lagging`).
 //!
 //! # The volume and the threshold
 //! On the mine scene (`caveflow demo --scale mine --out mine`, `caveflow run
@@ -102,15 +103,18 @@ impl Fill {
 
 /// Why a short period of a drawpoint could not deliver (see the module docs): `caved`
 /// whether the ground above it has caved, `fill` its lowest disks' fill at the end of the
-/// period, `imz` its IMZ.
+/// period, `imz` its IMZ. A drawpoint on caved ground is credited its schedule unless its
+/// fill is below [`EXHAUSTED_FILL`] (`crediting`), so a short one's column is running out:
+/// into the air gap under uncaved ground (`blocked`), or drawn out (`exhausted`).
 pub fn short_reason(caved: bool, fill: &Fill, imz: &Imz) -> &'static str {
-    let air = imz.blocked && imz.air > 0.0;
-    match fill.value() {
-        _ if !caved => "uncaved",
-        Some(f) if f < EXHAUSTED_FILL && air => "blocked",
-        Some(f) if f < EXHAUSTED_FILL => "exhausted",
-        None if air => "blocked",
-        _ => "lagging",
+    if !caved {
+        return "uncaved";
+    }
+    debug_assert!(fill.value().is_some_and(|f| f < EXHAUSTED_FILL), "{fill:?}");
+    if imz.blocked && imz.air > 0.0 {
+        "blocked"
+    } else {
+        "exhausted"
     }
 }
 

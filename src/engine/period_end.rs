@@ -128,7 +128,8 @@ impl Engine<'_> {
             if scheduled <= 0.0 && count == 0 {
                 continue;
             }
-            // Credited the schedule while flowing and within the budget (`crediting`).
+            // Credited the schedule while its lowest disks can feed it, else by its
+            // markers (`crediting`).
             let s_end = self.sched_cum[d] + scheduled;
             let stream = &self.streams[d];
             let marker = stream
@@ -136,10 +137,13 @@ impl Engine<'_> {
                 .unwrap_or(self.unit_mass[self.drawpoint_block[d]]);
             let trail = (crediting::TRAIL_MARKERS * marker).max(scheduled);
             let step = self.resolution.draw_increment;
-            let credited = if caved[d] {
+            let running_out = fills[d].value().is_some_and(|f| f < fill::EXHAUSTED_FILL);
+            let credited = if !caved[d] {
+                mass.min(scheduled)
+            } else if running_out {
                 stream.credit(s_end, scheduled, mass, self.cum[d], (trail, marker, step))
             } else {
-                mass.min(scheduled)
+                scheduled
             };
             let c = if mass > 0.0 {
                 credited / mass
