@@ -137,7 +137,7 @@ pub struct RunArgs {
     pub vtk: bool,
     /// Print the run's account to stderr at the end: wall time per phase of the engine
     /// (IMZ growth, engulfing, grids, row selection, marker pass, crediting, mobilised
-    /// sums, air gap, period end) and of the outputs, and the work counters (updates,
+    /// sums, air gap, fill, period end) and of the outputs, and the work counters (updates,
     /// marker steps, candidate tests and hits, disk-cycles). Costs a counting pass per
     /// update; a run without it keeps no account.
     #[arg(long)]

@@ -34,6 +34,8 @@ pub enum Phase {
     Mobilised,
     /// The air gap per block column.
     AirGap,
+    /// The fill of the drawing drawpoints' lowest disks (`engine::fill`).
+    Fill,
     /// The rest of a period's end: catching lagging markers up, extraction rows, IMZ rows,
     /// surface, snapshots, the rows' sort.
     PeriodEnd,
@@ -46,7 +48,7 @@ pub enum Phase {
 }
 
 /// Every phase, in order.
-pub const PHASES: [Phase; 12] = [
+pub const PHASES: [Phase; 13] = [
     Phase::Growth,
     Phase::Engulf,
     Phase::Grids,
@@ -55,6 +57,7 @@ pub const PHASES: [Phase; 12] = [
     Phase::Crediting,
     Phase::Mobilised,
     Phase::AirGap,
+    Phase::Fill,
     Phase::PeriodEnd,
     Phase::Finish,
     Phase::Control,
@@ -73,6 +76,7 @@ impl Phase {
             Phase::Crediting => "crediting",
             Phase::Mobilised => "mobilised sums",
             Phase::AirGap => "air gap",
+            Phase::Fill => "lowest disks' fill",
             Phase::PeriodEnd => "period end",
             Phase::Finish => "finish",
             Phase::Control => "draw control",

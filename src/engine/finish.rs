@@ -7,6 +7,7 @@ use rayon::prelude::*;
 
 use super::account::Phase;
 use super::crediting::{self, Tally};
+use super::fill;
 use super::fragmentation::SizeDist;
 use super::markers::Markers;
 use super::{
@@ -121,6 +122,27 @@ impl Engine<'_> {
                 });
             }
         }
+        let lags = crediting::lagging(
+            &self.out.extraction,
+            n_dp,
+            fill::EXHAUSTED_FILL,
+            self.resolution.draw_increment,
+        );
+        for l in lags {
+            let name = &self.scene.drawpoints.name[l.drawpoint];
+            let excess = l.credited - l.markers;
+            self.out.warnings.push(RunWarning {
+                rule: WarningRule::Lagging,
+                drawpoint: Some(name.clone()),
+                amount: excess,
+                message: format!(
+                    "drawpoint {name}: its markers weigh {:.3} of the {} t credited while its lowest disks could feed its schedule ({} t behind, beyond their discreteness); credited in full",
+                    l.ratio(),
+                    significant(l.credited),
+                    significant(excess)
+                ),
+            });
+        }
         for imz in &self.imzs {
             if imz.air > 0.0 {
                 let name = &self.scene.drawpoints.name[imz.id];
@@ -220,6 +242,16 @@ impl Engine<'_> {
             t.rill_dist += m * rilled;
         }
     }
+}
+
+/// `x` to four significant figures, without an exponent (tonnes from grams to megatonnes).
+fn significant(x: f64) -> String {
+    let digits = if x == 0.0 || !x.is_finite() {
+        0
+    } else {
+        (3 - x.abs().log10().floor() as i32).max(0) as usize
+    };
+    format!("{x:.digits$}")
 }
 
 #[cfg(test)]

@@ -7,6 +7,8 @@
 //!   (at the end of the run a range of rows at a time).
 //! - [`cadence`]: multi-rate marker updates: a slow marker steps once every 2^L updates.
 //! - [`crediting`]: the tonnes credited per period and the drawn stream they are read from.
+//! - [`fill`]: the fill of a drawpoint's lowest disks, and why a short period could not
+//!   deliver.
 //! - [`resolution`]: the automatic choice of h, marker spacing and draw increment.
 //! - [`fragmentation`]: primary fragment sizes and secondary fragmentation (summary §6.3).
 //! - [`fines`]: fines migration by percolation (summary §7.3).
@@ -53,6 +55,7 @@ pub mod cadence;
 pub mod checkpoint;
 pub mod crediting;
 pub mod draw_control;
+pub mod fill;
 pub mod fines;
 mod finish;
 pub mod fragmentation;

@@ -7,6 +7,7 @@ use rayon::prelude::*;
 
 use super::account::Phase;
 use super::crediting::{self, Tally};
+use super::fill::{self, Fill};
 use super::imz::{ImzGeom, Mobilised};
 use super::markers::Lattice;
 use super::{rilling, stress, Engine, SurfaceTable};
@@ -66,6 +67,40 @@ impl Engine<'_> {
             });
     }
 
+    /// The model's plan box ([x0, x1], [y0, y1]).
+    fn plan_box(&self) -> [[f64; 2]; 2] {
+        let (o, e) = self.extent;
+        [[o[0], o[0] + e[0]], [o[1], o[1] + e[1]]]
+    }
+
+    /// The fill of the lowest disks (`fill`) of each drawpoint that drew this period
+    /// (`caved`, and a schedule in `row`), the default (no volume, not judged) for the
+    /// others.
+    fn fills(&self, row: &[f64], caved: &[bool]) -> Vec<Fill> {
+        let bm = &self.scene.blocks;
+        let which: Vec<(usize, f64)> = (0..row.len())
+            .filter(|&d| caved[d] && row[d] > 0.0)
+            .map(|d| {
+                let b = self.drawpoint_block[d];
+                let rho1 = bm.density[b] * (1.0 - bm.n1[b]);
+                (d, row[d].max(fill::FILL_MARKERS * self.unit_mass[b]) / rho1)
+            })
+            .collect();
+        let got = fill::fills(
+            &self.imzs,
+            &which,
+            self.plan_box(),
+            &self.markers,
+            &self.bins,
+            bm,
+        );
+        let mut all = vec![Fill::default(); row.len()];
+        for (&(d, _), f) in which.iter().zip(got) {
+            all[d] = f;
+        }
+        all
+    }
+
     /// Writes the period's extraction rows and snapshots, and applies the correction.
     pub(super) fn close_period(&mut self, p: usize, period: i64, drawing: &[usize]) {
         let mut t = self.clock();
@@ -83,6 +118,9 @@ impl Engine<'_> {
         let mut caved = vec![false; row.len()];
         drawing.iter().for_each(|&d| caved[d] = true);
         let bm = &scene.blocks;
+        self.charge(Phase::PeriodEnd, &mut t);
+        let fills = self.fills(&row, &caved);
+        self.charge(Phase::Fill, &mut t);
         let ex = &mut self.out.extraction;
         for d in 0..row.len() {
             let (mass, count) = std::mem::take(&mut self.tally[d]);
@@ -90,7 +128,8 @@ impl Engine<'_> {
             if scheduled <= 0.0 && count == 0 {
                 continue;
             }
-            // Credited the schedule while flowing and within the budget (`crediting`).
+            // Credited the schedule while its lowest disks can feed it, else by its
+            // markers (`crediting`).
             let s_end = self.sched_cum[d] + scheduled;
             let stream = &self.streams[d];
             let marker = stream
@@ -98,10 +137,13 @@ impl Engine<'_> {
                 .unwrap_or(self.unit_mass[self.drawpoint_block[d]]);
             let trail = (crediting::TRAIL_MARKERS * marker).max(scheduled);
             let step = self.resolution.draw_increment;
-            let credited = if caved[d] {
+            let running_out = fills[d].value().is_some_and(|f| f < fill::EXHAUSTED_FILL);
+            let credited = if !caved[d] {
+                mass.min(scheduled)
+            } else if running_out {
                 stream.credit(s_end, scheduled, mass, self.cum[d], (trail, marker, step))
             } else {
-                mass.min(scheduled)
+                scheduled
             };
             let c = if mass > 0.0 {
                 credited / mass
@@ -135,14 +177,11 @@ impl Engine<'_> {
             } else {
                 "ok"
             });
-            ex.short_reason.push(if !short {
-                ""
-            } else if !caved[d] {
-                "uncaved"
-            } else if imz.blocked && imz.air > 0.0 {
-                "blocked"
+            ex.fill.push(fills[d].value().unwrap_or(f64::NAN));
+            ex.short_reason.push(if short {
+                fill::short_reason(caved[d], &fills[d], imz)
             } else {
-                "exhausted"
+                ""
             });
         }
         if self.scenario.outputs.imz_every_period || last {

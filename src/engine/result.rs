@@ -58,10 +58,16 @@ pub struct Extraction {
     /// ok | short | idle.
     #[serde(deserialize_with = "static_statuses")]
     pub status: Vec<&'static str>,
-    /// Why a `short` row could not deliver (`engine::crediting`): uncaved | blocked |
-    /// exhausted; empty for the other rows.
+    /// Why a `short` row could not deliver, from the state of its drawpoint's lowest
+    /// disks (`engine::fill`): uncaved | blocked | exhausted; empty for the other rows.
     #[serde(default, deserialize_with = "static_reasons")]
     pub short_reason: Vec<&'static str>,
+    /// Fill of the drawpoint's lowest disks at the end of the period (`engine::fill`):
+    /// the markers' volume at n1 over the disks'; NaN where it did not draw (uncaved, or
+    /// nothing scheduled) or its IMZ is still smaller than the volume the fill is read
+    /// over.
+    #[serde(default)]
+    pub fill: Vec<f64>,
     /// `grades[g][row]`.
     pub grades: Vec<Vec<f64>>,
     /// `lithology[l][row]` mass shares.
@@ -121,6 +127,10 @@ pub enum WarningRule {
     /// A drawpoint could not deliver all of its schedule (amount: the tonnes it still
     /// owes at the end).
     Short,
+    /// A drawpoint's markers ran behind its credits by more than their discreteness while
+    /// its lowest disks could feed its schedule (`crediting::lagging`; amount: the credits'
+    /// excess over its markers' mass, t).
+    Lagging,
     /// A drawpoint's IMZ ends the run held under uncaved ground (amount: the air gap, m³).
     AirGap,
     /// The median mass correction leaves 1 ± 0.03: a bias, not discreteness.
@@ -335,9 +345,9 @@ pub struct RunOutput {
 /// Row statuses of the extraction report.
 pub const STATUSES: [&str; 3] = ["ok", "short", "idle"];
 
-/// Why a short row could not deliver: the ground above the drawpoint has not caved; its
-/// IMZ is held under uncaved ground and has drained into the air gap; its column is
-/// exhausted.
+/// Why a short row could not deliver (`engine::fill`): the ground above the drawpoint has
+/// not caved; its column has drained into the air gap under uncaved ground; its column is
+/// drawn out.
 pub const SHORT_REASONS: [&str; 4] = ["", "uncaved", "blocked", "exhausted"];
 
 /// Reads `Extraction::status` back from a checkpoint as the static names.

@@ -84,6 +84,7 @@ pub fn extraction_batch(scene: &Scene, t: Extraction) -> Result<RecordBatch, Arr
         ("rill_distance", f64s_or_null(t.rill_distance)),
         ("status", status),
         ("short_reason", short_reason),
+        ("fill", f64s_or_null(t.fill)),
     ];
     let grades = blocks
         .grade_names

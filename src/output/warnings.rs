@@ -17,6 +17,7 @@ pub fn summary(warnings: &[RunWarning]) -> Vec<String> {
         Input,
         Uncaved,
         Short,
+        Lagging,
         AirGap,
         MassBalance,
     ] {
@@ -39,6 +40,12 @@ pub fn summary(warnings: &[RunWarning]) -> Vec<String> {
             )),
             Short => lines.push(format!(
                 "{} drawpoints short of material, {} in all, worst {}; see extraction.status and shortfall_tonnes",
+                per.len(),
+                tonnes(total),
+                worst(&per, |p| tonnes(p.2))
+            )),
+            Lagging => lines.push(format!(
+                "{} drawpoints' markers ran behind their credits while their lowest disks could feed them, {} in all, worst {}; credited in full, see manifest.json for each ratio",
                 per.len(),
                 tonnes(total),
                 worst(&per, |p| tonnes(p.2))
@@ -133,9 +140,10 @@ mod tests {
             ws.push(w(WarningRule::Uncaved, "D07", 150.0));
         }
         ws.push(w(WarningRule::Uncaved, "D08", 100.0));
+        ws.push(w(WarningRule::Lagging, "D10", 2_500.0));
         ws.push(w(WarningRule::AirGap, "D09", 3.5e4));
         let lines = summary(&ws);
-        assert_eq!(lines.len(), 5, "{lines:#?}");
+        assert_eq!(lines.len(), 6, "{lines:#?}");
         assert_eq!(
             lines[0],
             "stability [frag-to-width] degraded: drawpoint DP1: …"
@@ -148,14 +156,18 @@ mod tests {
             lines[2],
             "5 drawpoints short of material, 1.31 Mt in all, worst D02 (1.30 Mt), D04 (9000.0 t), D01 (400.0 t), and 2 more; see extraction.status and shortfall_tonnes"
         );
+        assert_eq!(
+            lines[3],
+            "1 drawpoints' markers ran behind their credits while their lowest disks could feed them, 2500.0 t in all, worst D10 (2500.0 t); credited in full, see manifest.json for each ratio"
+        );
         assert!(
-            lines[3].starts_with("1 drawpoints end the run under an air gap"),
+            lines[4].starts_with("1 drawpoints end the run under an air gap"),
             "{}",
-            lines[3]
+            lines[4]
         );
         assert_eq!(
-            lines[4],
-            "11 warnings in all: the full list is in manifest.json"
+            lines[5],
+            "12 warnings in all: the full list is in manifest.json"
         );
         assert!(summary(&[]).is_empty());
     }

@@ -29,6 +29,7 @@ mod records;
 mod report;
 mod rilling;
 mod scenario_rules;
+mod short_reasons;
 mod stability;
 mod stress;
 mod study;

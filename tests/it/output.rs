@@ -216,6 +216,7 @@ fn fake_run(scene: &Scene) -> RunOutput {
         rill_distance: v(3.0),
         status: vec!["ok", "short", "idle", "ok", "ok", "short"],
         short_reason: vec!["", "blocked", "", "", "", "exhausted"],
+        fill: vec![0.95, 0.3, f64::NAN, 1.02, 0.9, 0.2],
         grades: vec![v(0.25)],
         lithology: (0..n_lith).map(|l| v(0.1 * l as f64)).collect(),
     };

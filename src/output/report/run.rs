@@ -202,7 +202,7 @@ pub fn write_run_report(dir: &Path, r: &RunReport) -> Result<PathBuf, ReportErro
     page.glossary(&[
         (
             "drawn tonnes",
-            "the tonnes credited to a drawpoint: its scheduled tonnes, less what it could not deliver (short of material, IMZ blocked, ground not caved)",
+            "the tonnes credited to a drawpoint: its scheduled tonnes, less what it could not deliver (its column drawn out or drained into an air gap, its ground not caved, or its markers behind its credits: extraction.short_reason)",
         ),
         (
             "dilution entry",
