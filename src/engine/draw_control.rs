@@ -31,66 +31,12 @@
 //! extraction rows read it as they read a fixed schedule, so a controlled run's realised
 //! schedule (`schedule_realised`), run as a fixed schedule, draws the same.
 
-use serde::{Deserialize, Serialize};
-
 use super::crediting::{self, Tally};
 use super::Engine;
 use crate::model::{Economics, Scene};
 
 /// Why a drawpoint closed.
 pub const CLOSURE_REASONS: [&str; 4] = ["shutoff_grade", "dilution", "hod_limit", "best_hod"];
-
-/// The control's state and record, carried in the run's output (so a checkpoint holds it).
-#[derive(Debug, Clone, Default, Serialize, Deserialize)]
-pub struct ControlRecord {
-    /// The realised tonnes, period by period (drawpoint-major rows, as `Schedule`).
-    pub realised: Vec<f64>,
-    /// Per drawpoint, the index of the period in which it closed.
-    pub closed: Vec<Option<usize>>,
-    /// Per drawpoint, consecutive periods it drew below the shut-off grade.
-    pub low: Vec<usize>,
-    /// The closures, in order.
-    pub closures: Closures,
-    /// Production against target per period.
-    pub production: Production,
-}
-
-/// The `closures` table: one row per closed drawpoint.
-#[derive(Debug, Clone, Default, Serialize, Deserialize)]
-pub struct Closures {
-    /// Drawpoint index.
-    pub drawpoint: Vec<u32>,
-    /// Period in which it closed.
-    pub period: Vec<i64>,
-    /// Which rule closed it ([`CLOSURE_REASONS`]).
-    pub reason: Vec<String>,
-    /// Tonnes it drew in all, t.
-    pub cum_tonnes: Vec<f64>,
-    /// Height of draw at closure, m.
-    pub hod: Vec<f64>,
-    /// Grade of what it drew in the closing period (the shut-off column, else the first
-    /// grade column).
-    pub grade: Vec<f64>,
-}
-
-/// The `production` table: target against realised tonnes per period.
-#[derive(Debug, Clone, Default, Serialize, Deserialize)]
-pub struct Production {
-    /// Period number.
-    pub period: Vec<i64>,
-    /// Target, t.
-    pub target_tonnes: Vec<f64>,
-    /// Tonnes shared among the open drawpoints, t.
-    pub planned_tonnes: Vec<f64>,
-    /// Tonnes credited, t (below planned where a drawpoint could not deliver).
-    pub tonnes: Vec<f64>,
-    /// Target the open drawpoints could not take, t.
-    pub shortfall_tonnes: Vec<f64>,
-    /// Open drawpoints.
-    pub open: Vec<u32>,
-    /// Drawpoints closed so far.
-    pub closed: Vec<u32>,
-}
 
 /// What the control derives from the scene once: each drawpoint's column height and
 /// its neighbours.

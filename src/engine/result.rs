@@ -332,10 +332,10 @@ pub struct RunOutput {
     pub trace: TraceTable,
     /// Draw control's realised schedule, closures and production against target (None
     /// without `[draw_control]`'s target strategy).
-    pub control: Option<super::draw_control::ControlRecord>,
+    pub control: Option<ControlRecord>,
     /// Each drawpoint-period's value and each drawpoint's best height of draw (None
     /// without `[economics]`).
-    pub value: Option<(super::value::ValueTable, super::value::BestHod)>,
+    pub value: Option<(ValueTable, BestHod)>,
     /// Time per phase and work counters, when the engine kept an account
     /// (`Engine::keep_account`).
     #[serde(skip)]
@@ -479,4 +479,94 @@ impl RunOutput {
             None => Cow::Borrowed(&self.drawn),
         }
     }
+}
+
+/// Draw control's state and record (`engine::draw_control`), carried in the run's output
+/// (so a checkpoint holds it).
+#[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
+pub struct ControlRecord {
+    /// The realised tonnes, period by period (drawpoint-major rows, as `Schedule`).
+    pub realised: Vec<f64>,
+    /// Per drawpoint, the index of the period in which it closed.
+    pub closed: Vec<Option<usize>>,
+    /// Per drawpoint, consecutive periods it drew below the shut-off grade.
+    pub low: Vec<usize>,
+    /// The closures, in order.
+    pub closures: Closures,
+    /// Production against target per period.
+    pub production: Production,
+}
+
+/// The `closures` table: one row per closed drawpoint.
+#[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
+pub struct Closures {
+    /// Drawpoint index.
+    pub drawpoint: Vec<u32>,
+    /// Period in which it closed.
+    pub period: Vec<i64>,
+    /// Which rule closed it (`draw_control::CLOSURE_REASONS`).
+    pub reason: Vec<String>,
+    /// Tonnes it drew in all, t.
+    pub cum_tonnes: Vec<f64>,
+    /// Height of draw at closure, m.
+    pub hod: Vec<f64>,
+    /// Grade of what it drew in the closing period (the shut-off column, else the first
+    /// grade column).
+    pub grade: Vec<f64>,
+}
+
+/// The `production` table: target against realised tonnes per period.
+#[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
+pub struct Production {
+    /// Period number.
+    pub period: Vec<i64>,
+    /// Target, t.
+    pub target_tonnes: Vec<f64>,
+    /// Tonnes shared among the open drawpoints, t.
+    pub planned_tonnes: Vec<f64>,
+    /// Tonnes credited, t (below planned where a drawpoint could not deliver).
+    pub tonnes: Vec<f64>,
+    /// Target the open drawpoints could not take, t.
+    pub shortfall_tonnes: Vec<f64>,
+    /// Open drawpoints.
+    pub open: Vec<u32>,
+    /// Drawpoints closed so far.
+    pub closed: Vec<u32>,
+}
+
+/// The `value` table (`engine::value`): one row per extraction row that drew.
+#[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
+pub struct ValueTable {
+    /// Drawpoint index.
+    pub drawpoint: Vec<u32>,
+    /// Period number.
+    pub period: Vec<i64>,
+    /// Credited tonnes, t.
+    pub tonnes: Vec<f64>,
+    /// Height of draw at the period's end, m.
+    pub hod: Vec<f64>,
+    /// The period's value.
+    pub value: Vec<f64>,
+    /// The drawpoint's cumulative value at the period's end.
+    pub cum_value: Vec<f64>,
+}
+
+/// The `best_hod` table: one row per drawpoint that drew.
+#[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
+pub struct BestHod {
+    /// Drawpoint index.
+    pub drawpoint: Vec<u32>,
+    /// Height of draw at which the cumulative value peaks, m (0 when it never rises above
+    /// zero).
+    pub best_hod: Vec<f64>,
+    /// Tonnes drawn by then, t.
+    pub best_tonnes: Vec<f64>,
+    /// The peak cumulative value.
+    pub best_value: Vec<f64>,
+    /// Period in which the peak was reached (-1 when it never rose above zero).
+    pub best_period: Vec<i64>,
+    /// Height of draw at the end of the run, m.
+    pub final_hod: Vec<f64>,
+    /// Cumulative value at the end of the run.
+    pub final_value: Vec<f64>,
 }

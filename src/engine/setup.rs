@@ -69,7 +69,7 @@ impl<'a> Engine<'a> {
         };
         out.warnings = plan.into_warnings();
         let dc = &scenario.draw_control;
-        out.control = dc.is_target().then(|| draw_control::ControlRecord {
+        out.control = dc.is_target().then(|| super::result::ControlRecord {
             closed: vec![None; dp.len()],
             low: vec![0; dp.len()],
             ..Default::default()

@@ -8,47 +8,8 @@
 //! rises while the drawpoint delivers ore worth more than its cost and falls once dilution
 //! has brought the grade below the break-even grade; its peak is the best height of draw.
 
-use serde::{Deserialize, Serialize};
-
-use super::result::Extraction;
+use super::result::{BestHod, Extraction, ValueTable};
 use crate::model::Economics;
-
-/// The `value` table: one row per extraction row that drew.
-#[derive(Debug, Clone, Default, Serialize, Deserialize)]
-pub struct ValueTable {
-    /// Drawpoint index.
-    pub drawpoint: Vec<u32>,
-    /// Period number.
-    pub period: Vec<i64>,
-    /// Credited tonnes, t.
-    pub tonnes: Vec<f64>,
-    /// Height of draw at the period's end, m.
-    pub hod: Vec<f64>,
-    /// The period's value.
-    pub value: Vec<f64>,
-    /// The drawpoint's cumulative value at the period's end.
-    pub cum_value: Vec<f64>,
-}
-
-/// The `best_hod` table: one row per drawpoint that drew.
-#[derive(Debug, Clone, Default, Serialize, Deserialize)]
-pub struct BestHod {
-    /// Drawpoint index.
-    pub drawpoint: Vec<u32>,
-    /// Height of draw at which the cumulative value peaks, m (0 when it never rises above
-    /// zero).
-    pub best_hod: Vec<f64>,
-    /// Tonnes drawn by then, t.
-    pub best_tonnes: Vec<f64>,
-    /// The peak cumulative value.
-    pub best_value: Vec<f64>,
-    /// Period in which the peak was reached (-1 when it never rose above zero).
-    pub best_period: Vec<i64>,
-    /// Height of draw at the end of the run, m.
-    pub final_hod: Vec<f64>,
-    /// Cumulative value at the end of the run.
-    pub final_value: Vec<f64>,
-}
 
 /// The values of the extraction rows `ex` (grade columns `names`) and each drawpoint's
 /// best height of draw.

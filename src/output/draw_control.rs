@@ -12,8 +12,7 @@ use arrow::record_batch::RecordBatch;
 
 use super::columns::{f64s, i64s, names, strs, table_batch, write_table};
 use super::OutputError;
-use crate::engine::draw_control::ControlRecord;
-use crate::engine::value::{BestHod, ValueTable};
+use crate::engine::result::{BestHod, ControlRecord, ValueTable};
 use crate::model::Scene;
 use crate::schema::{BEST_HOD, CLOSURES, PRODUCTION_TARGET, SCHEDULE, VALUE};
 

@@ -7,9 +7,9 @@ use std::path::{Path, PathBuf};
 
 use super::page::Page;
 use super::ReportError;
-use crate::engine::draw_control::{ControlRecord, Layout};
+use crate::engine::draw_control::Layout;
 use crate::engine::result::RunOutput;
-use crate::engine::value::{BestHod, ValueTable};
+use crate::engine::result::{BestHod, ControlRecord, ValueTable};
 use crate::model::Scene;
 use crate::output::charts::{fmt_mass, line_chart, plan_map_chart, LineSeries, MapPoint, MapScale};
 
