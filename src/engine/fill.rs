@@ -143,7 +143,7 @@ pub fn lowest_disks(imz: &Imz, need: f64, plan: [[f64; 2]; 2]) -> Vec<f64> {
 /// All at once: each plan cell that some of the lowest disks cover is read once, in
 /// parallel, for all of them (neighbouring drawpoints share cells), and its markers above
 /// every one of those disks are rejected by their height alone. Each marker's share of
-/// the disks' volume is summed in fixed point ([`FILL_UNITS`]), exactly, so the fill does
+/// the disks' volume is summed in fixed point (`FILL_UNITS`), exactly, so the fill does
 /// not depend on the order in which the markers are read.
 pub fn fills(
     imzs: &[Imz],
@@ -229,7 +229,7 @@ pub fn fills(
 }
 
 /// The share of the disk of radius `r` centred on `c` that lies inside the plan box
-/// `plan`: 1 where it does not cross a wall, else integrated over [`STRIPS`] strips.
+/// `plan`: 1 where it does not cross a wall, else integrated over `STRIPS` strips.
 pub fn inside_share(c: [f64; 2], r: f64, plan: [[f64; 2]; 2]) -> f64 {
     let [[x0, x1], [y0, y1]] = plan;
     if r <= 0.0 {
