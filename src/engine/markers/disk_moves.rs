@@ -3,7 +3,7 @@
 //! part where the ring's dilation is not the same all round, and the per-disk constants
 //! ([`PerDisk`]) they read (summary §3.3; see the module above for the equations).
 
-use super::super::imz::{DiskMotion, PerDisk, Profile};
+use super::super::imz::{DiskMotion, PerDisk, Profile, SHAPE_MODES};
 
 /// The transfer (Δa′, Δz′) of a marker at radius `a` in disk `here` that the update carried
 /// `depth` below the disk's base, into the disk `below`.
@@ -47,15 +47,32 @@ pub(super) fn transfer(here: &DiskMotion, below: &DiskMotion, a: f64, depth: f64
 /// `m.per_disk` must be prepared ([`prepare`]).
 #[inline]
 pub fn radial(m: &DiskMotion, a: f64, inv_a: f64) -> f64 {
+    radial_cut(m, a, inv_a).0
+}
+
+/// [`radial`]'s move and the length its cap dropped (the push beyond R_old asked for past
+/// R_old / 2, the squeeze inside it past a / 2; `caps`).
+#[inline]
+pub(super) fn radial_cut(m: &DiskMotion, a: f64, inv_a: f64) -> (f64, f64) {
     let p = &m.per_disk;
     if !p.widened || a > m.r || !(a > 0.0) {
-        return 0.0;
+        return (0.0, 0.0);
     }
     if a > m.r_old {
-        -p.push.min(0.5 * m.r_old) * (1.0 - (a - m.r_old) * p.inv_dr)
+        let (cap, fall) = (0.5 * m.r_old, 1.0 - (a - m.r_old) * p.inv_dr);
+        if p.push > cap {
+            (-cap * fall, (p.push - cap) * fall)
+        } else {
+            (-p.push * fall, 0.0)
+        }
     } else {
         let u = p.take * p.profile.flux_inside(a) * (0.5 * std::f64::consts::FRAC_1_PI) * inv_a;
-        -u.min(0.5 * a)
+        let cap = 0.5 * a;
+        if u > cap {
+            (-cap, u - cap)
+        } else {
+            (-u, 0.0)
+        }
     }
 }
 
@@ -79,9 +96,24 @@ pub fn radial(m: &DiskMotion, a: f64, inv_a: f64) -> f64 {
 /// `m.per_disk` must be prepared ([`prepare`]).
 #[inline]
 pub fn lateral(m: &DiskMotion, ex: f64, ey: f64, a: f64, u: [f64; 2]) -> (f64, f64) {
+    let (lx, ly, _, _) = lateral_cut(m, ex, ey, a, u);
+    (lx, ly)
+}
+
+/// [`lateral`]'s move (dx, dy), the length its cap dropped (asked for past R_old / 4),
+/// and the estimate of what the Fourier modes beyond `SHAPE_MODES` would move the marker
+/// (RMS over the angle at its radius; `caps`).
+#[inline]
+pub(super) fn lateral_cut(
+    m: &DiskMotion,
+    ex: f64,
+    ey: f64,
+    a: f64,
+    u: [f64; 2],
+) -> (f64, f64, f64, f64) {
     let (r_old, p) = (m.r_old, &m.per_disk);
     if !p.lateral || a > m.r {
-        return (0.0, 0.0);
+        return (0.0, 0.0, 0.0, 0.0);
     }
     // u_a(R_old, θ) = s Σ α_k cos kθ + β_k sin kθ: the uniform push at R_old times w − 1.
     let s = -p.push;
@@ -93,19 +125,26 @@ pub fn lateral(m: &DiskMotion, ex: f64, ey: f64, a: f64, u: [f64; 2]) -> (f64, f
     // W'(z) = s Σ (α_k − i β_k) t^(k−1), t = z / R_old; u = (Re W', −Im W').
     let (mut wr, mut wi) = (0.0, 0.0);
     let (mut pr, mut pi) = (1.0, 0.0);
-    for k in 0..super::super::imz::SHAPE_MODES {
+    for k in 0..SHAPE_MODES {
         let (al, be) = (m.shape[2 * k], m.shape[2 * k + 1]);
         wr += al * pr + be * pi;
         wi += al * pi - be * pr;
         (pr, pi) = (pr * tx - pi * ty, pr * ty + pi * tx);
     }
     let (ux, uy) = (scale * wr, -scale * wi);
+    // The modes left out fall as (a / R_old)^(k−1), k > K, inside R_old.
+    let rest = if a <= r_old {
+        p.tail * (a * p.inv_r_old).powi(SHAPE_MODES as i32)
+    } else {
+        p.tail * (m.r - a) * p.inv_dr
+    };
     let (cap, len2) = (0.25 * r_old, ux * ux + uy * uy);
     if len2 > cap * cap {
-        let k = cap / len2.sqrt();
-        (ux * k, uy * k)
+        let len = len2.sqrt();
+        let k = cap / len;
+        (ux * k, uy * k, len - cap, rest)
     } else {
-        (ux, uy)
+        (ux, uy, 0.0, rest)
     }
 }
 
@@ -132,6 +171,7 @@ pub fn prepare(motion: &mut [DiskMotion], h: f64) {
             inv_r_old,
             inv_dr,
             lateral: widened && m.shape.iter().any(|&c| c != 0.0),
+            tail: push * (2.0 * m.shape_rest).sqrt(),
         };
     }
 }

@@ -88,6 +88,7 @@
 //! A marker that leaves the lowest disk is drawn, credited to the IMZ that moved it most.
 
 mod bins;
+mod caps;
 mod disk_moves;
 mod lattice;
 mod motion;
@@ -98,6 +99,7 @@ use rayon::prelude::*;
 use super::cadence::Cadence;
 
 pub use bins::Bins;
+pub use caps::{CapCount, CapTally, Cut, MarkerCaps};
 pub use disk_moves::{lateral, prepare, radial};
 pub use lattice::{Lattice, Rim};
 pub use motion::{MotionField, Step};
@@ -245,38 +247,46 @@ impl Markers {
 pub type StepHook<'a> = &'a (dyn Fn(&Markers, usize, &mut Step) + Sync);
 
 /// Moves every marker once (parallel, pure per marker, so the result does not depend on
-/// the number of threads). Returns the rows drawn, in row order, with their drawpoint.
-/// `extra` may add to each marker's step before it is applied (fines percolation); it must
-/// be pure per marker too.
+/// the number of threads). Returns the rows drawn, in row order, with their drawpoint,
+/// and the caps' counts over the steps (`caps`). `extra` may add to each marker's step
+/// before it is applied (fines percolation); it must be pure per marker too.
 pub fn move_markers(
     mk: &mut Markers,
     field: &MotionField,
     extra: Option<StepHook>,
-) -> Vec<(usize, u32)> {
+) -> (Vec<(usize, u32)>, CapTally) {
     let Some(extra) = extra else {
         // No hook reads the markers: step and apply in one pass. A marker's step depends
         // on its own position only, so this is the two-pass result bit for bit, without the
         // per-update array of steps (72 bytes a marker, fresh pages every update).
+        let none = || (Vec::new(), CapTally::default());
         return (
             mk.x.par_iter_mut(),
             mk.y.par_iter_mut(),
             mk.z.par_iter_mut(),
             mk.strain.par_iter_mut(),
             mk.work.par_iter_mut(),
-            mk.id.par_iter(),
+            (mk.id.par_iter(), mk.mass.par_iter()),
         )
             .into_par_iter()
             .enumerate()
-            .filter_map(|(k, (x, y, z, g, w, &id))| {
+            .fold(none, |(mut drawn, mut tally), (k, (x, y, z, g, w, (&id, &m)))| {
                 let s = field.step([*x, *y, *z], id);
                 *x += s.dx;
                 *y += s.dy;
                 *z += s.dz;
                 *g += s.strain;
                 *w += s.work;
-                (s.drawn_by != u32::MAX).then_some((k, s.drawn_by))
+                tally.add(m, &s);
+                if s.drawn_by != u32::MAX {
+                    drawn.push((k, s.drawn_by));
+                }
+                (drawn, tally)
             })
-            .collect();
+            .reduce(none, |(mut a, ta), (mut b, tb)| {
+                a.append(&mut b);
+                (a, ta.merge(tb))
+            });
     };
     let steps: Vec<Step> = (0..mk.len())
         .into_par_iter()
@@ -306,12 +316,20 @@ pub fn move_markers(
         .par_iter_mut()
         .zip(&steps)
         .for_each(|(l, s)| *l += s.perc);
-    steps
+    let tally = (&mk.mass, &steps)
+        .into_par_iter()
+        .fold(CapTally::default, |mut t, (&m, s)| {
+            t.add(m, s);
+            t
+        })
+        .reduce(CapTally::default, CapTally::merge);
+    let drawn = steps
         .iter()
         .enumerate()
         .filter(|(_, s)| s.drawn_by != u32::MAX)
         .map(|(k, s)| (k, s.drawn_by))
-        .collect()
+        .collect();
+    (drawn, tally)
 }
 
 /// Moves the marker rows `rows` (ascending, distinct) once: [`move_markers`] restricted to
@@ -321,16 +339,17 @@ pub fn move_markers(
 ///
 /// `fields[L]` is the motion of cadence level L (`engine::cadence`). Without a cadence
 /// every row steps by `fields[0]`; with `(cadence, u)` each row steps by its own level's
-/// field and then takes its next level for update `u`.
+/// field and then takes its next level for update `u`. Each chunk counts the caps over
+/// its steps (`caps`), and the chunks' counts are added after the pass.
 pub fn move_rows(
     mk: &mut Markers,
     fields: &[MotionField],
     extra: Option<StepHook>,
     rows: &[u32],
     cadence: Option<(&Cadence, u64)>,
-) -> Vec<(usize, u32)> {
+) -> (Vec<(usize, u32)>, CapTally) {
     if rows.is_empty() {
-        return Vec::new();
+        return (Vec::new(), CapTally::default());
     }
     debug_assert!(rows.windows(2).all(|w| w[0] < w[1]));
     let chunk = (rows.len() / (16 * rayon::current_num_threads())).max(256);
@@ -352,9 +371,9 @@ pub fn move_rows(
         None => Vec::new(),
     };
     let (hooked, steps) = (extra.is_some(), &steps[..]);
-    let ids = &mk.id;
+    let (ids, mass) = (&mk.id, &mk.mass);
     let firsts: Vec<usize> = (0..chunks.len()).map(|c| c * chunk).collect();
-    let drawn: Vec<Vec<(usize, u32)>> = (
+    let drawn: Vec<(Vec<(usize, u32)>, CapTally)> = (
         (chunks, spans.clone(), firsts),
         windows(&mut mk.x, &spans),
         windows(&mut mk.y, &spans),
@@ -366,7 +385,7 @@ pub fn move_rows(
     )
         .into_par_iter()
         .map(|((rows, (lo, _), first), x, y, z, g, w, l, lv)| {
-            let mut drawn = Vec::new();
+            let (mut drawn, mut tally) = (Vec::new(), CapTally::default());
             for (n, &k) in rows.iter().enumerate() {
                 let i = k as usize - lo;
                 let s = if hooked {
@@ -387,14 +406,16 @@ pub fn move_rows(
                     let moved = (s.dx * s.dx + s.dy * s.dy + s.dz * s.dz).sqrt();
                     lv[i] = c.next_level(lv[i], moved, u);
                 }
+                tally.add(mass[k as usize], &s);
                 if s.drawn_by != u32::MAX {
                     drawn.push((k as usize, s.drawn_by));
                 }
             }
-            drawn
+            (drawn, tally)
         })
         .collect();
-    drawn.concat()
+    let tally = drawn.iter().fold(CapTally::default(), |t, d| t.merge(d.1));
+    (drawn.into_iter().flat_map(|d| d.0).collect(), tally)
 }
 
 /// The candidate tests and hits of a marker pass over `rows` (`engine::account`), each row

@@ -9,7 +9,8 @@ use rand::Rng;
 use super::super::random::{marker_rng, TRANSFER_STREAM};
 
 use super::super::imz::{DiskMotion, ImzGeom, ImzGrid};
-use super::disk_moves::{lateral, radial, transfer};
+use super::caps::{Cut, LATERAL, MODES, PUSH, RIM, SQUEEZE};
+use super::disk_moves::{lateral_cut, radial_cut, transfer};
 use super::WallReach;
 use crate::model::BlockModel;
 
@@ -56,6 +57,8 @@ pub struct Step {
     pub host: u32,
     /// Percolation distance (downward, ≥ 0) included in `dz`, m (`engine::fines`).
     pub perc: f64,
+    /// What the caps of the moves left out of this step (`caps`).
+    pub cut: Cut,
 }
 
 impl MotionField<'_> {
@@ -122,6 +125,7 @@ impl MotionField<'_> {
             sum.strain += st.strain;
             sum.work += st.work;
             sum.dbar += st.dbar;
+            sum.cut.add(&st.cut);
             if sum.host == u32::MAX {
                 sum.host = st.host;
             }
@@ -177,7 +181,8 @@ impl MotionField<'_> {
                 let dz = -k * dv * pd.fall * pd.profile.shape(a);
                 let inv_a = if a > 0.0 { 1.0 / a } else { 0.0 };
                 let (ux, uy) = (ex * inv_a, ey * inv_a);
-                let mut da = k * radial(m, a, inv_a);
+                let (da, mut cut_r) = radial_cut(m, a, inv_a);
+                let mut da = k * da;
                 // The inward move is the dilating ring pushing in along the marker's ray. In a
                 // disk cut by a wall or uncaved ground (A_f < 1) there is no ring on a ray that
                 // leaves the flowable ground before the new radius, so nothing pushes there
@@ -187,12 +192,21 @@ impl MotionField<'_> {
                         let reach = m.r * (1.0 - 1e-9);
                         let rim = bm.mirror([g.x + ux * reach, g.y + uy * reach, p[2]]);
                         if !bm.locate(rim).is_some_and(|b| bm.flowable(b, period)) {
-                            da = 0.0;
+                            (da, cut_r) = (0.0, 0.0);
                         }
                     }
                 }
-                let (lx, ly) = lateral(m, ex, ey, a, [ux, uy]);
+                let (lx, ly, cut_l, rest) = lateral_cut(m, ex, ey, a, [ux, uy]);
                 let (lx, ly) = (k * lx, k * ly);
+                if cut_r > 0.0 {
+                    st.cut.dropped[if a > m.r_old { PUSH } else { SQUEEZE }] += k * cut_r;
+                }
+                if pd.lateral && a <= m.r {
+                    st.cut.dropped[LATERAL] += k * cut_l;
+                    st.cut.dropped[MODES] += k * rest;
+                    st.cut.variance[0] += k * m.shape_rest;
+                    st.cut.variance[1] += k * m.shape_var;
+                }
                 st.dx += sx * (da * ux + lx);
                 st.dy += sy * (da * uy + ly);
                 st.dz += dz;
@@ -268,6 +282,7 @@ impl MotionField<'_> {
             st.strain *= used;
             st.work *= used;
             st.dbar *= used;
+            st.cut.scale(used);
             st.dz = first - p[2];
         }
         let crosses = |b: &&Base| {
@@ -306,6 +321,8 @@ impl MotionField<'_> {
                 let a = (ex * ex + ey * ey).sqrt();
                 let (m, below) = (&motion[b.i as usize], &motion[b.i as usize - 1]);
                 if a > 0.0 && below.r > 0.0 && (below.r != m.r || below.w != m.w) {
+                    // Beyond the rim the transfer maps the marker as if at the rim.
+                    st.cut.dropped[RIM] += (a - m.r).max(0.0);
                     let (da, _) = transfer(m, below, a, 0.0);
                     st.dx += da * b.s[0] * ex / a;
                     st.dy += da * b.s[1] * ey / a;
@@ -323,6 +340,7 @@ impl MotionField<'_> {
                     }
                     let (m, below) = (&motion[i], &motion[i - 1]);
                     if below.r > 0.0 && (below.r != m.r || below.w != m.w) {
+                        st.cut.dropped[RIM] += (a - m.r).max(0.0);
                         let (da_i, dz_i) = transfer(m, below, a, z_base - z);
                         (a, z) = ((a + da_i).max(0.0), z + dz_i);
                         (da, dz_t) = (da + da_i, dz_t + dz_i);
