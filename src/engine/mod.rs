@@ -413,6 +413,11 @@ impl<'a> Engine<'a> {
                 passes
             })
             .sum();
+        for &d in drawing {
+            let imz = &self.imzs[d];
+            let caps = &mut self.out.marker_caps;
+            caps.add_disks(&imz.motion, &imz.stagnant, imz.geom.h);
+        }
         self.charge(Phase::Growth, &mut t);
         let before = self.markers.len();
         self.engulf(period, drawing);

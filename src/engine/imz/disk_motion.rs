@@ -69,6 +69,9 @@ pub struct PerDisk {
     /// push √(2 σ²), σ² the dilation's variance beyond the kept modes: the RMS of what the
     /// modes left out would move a marker at R_old (`engine::markers::caps`), m.
     pub tail: f64,
+    /// Whether a cap of the push, the squeeze or the lateral move can bind in this disk
+    /// (`engine::markers::caps`): only then does the pass count what the caps drop.
+    pub may_cap: bool,
 }
 
 /// The shape of a disk's vertical velocity profile (summary §3.3): a plug of radius

@@ -60,19 +60,10 @@ pub(super) fn radial_cut(m: &DiskMotion, a: f64, inv_a: f64) -> (f64, f64) {
     }
     if a > m.r_old {
         let (cap, fall) = (0.5 * m.r_old, 1.0 - (a - m.r_old) * p.inv_dr);
-        if p.push > cap {
-            (-cap * fall, (p.push - cap) * fall)
-        } else {
-            (-p.push * fall, 0.0)
-        }
+        (-p.push.min(cap) * fall, (p.push - cap).max(0.0) * fall)
     } else {
         let u = p.take * p.profile.flux_inside(a) * (0.5 * std::f64::consts::FRAC_1_PI) * inv_a;
-        let cap = 0.5 * a;
-        if u > cap {
-            (-cap, u - cap)
-        } else {
-            (-u, 0.0)
-        }
+        (-u.min(0.5 * a), (u - 0.5 * a).max(0.0))
     }
 }
 
@@ -96,13 +87,12 @@ pub(super) fn radial_cut(m: &DiskMotion, a: f64, inv_a: f64) -> (f64, f64) {
 /// `m.per_disk` must be prepared ([`prepare`]).
 #[inline]
 pub fn lateral(m: &DiskMotion, ex: f64, ey: f64, a: f64, u: [f64; 2]) -> (f64, f64) {
-    let (lx, ly, _, _) = lateral_cut(m, ex, ey, a, u);
+    let (lx, ly, _) = lateral_cut(m, ex, ey, a, u);
     (lx, ly)
 }
 
-/// [`lateral`]'s move (dx, dy), the length its cap dropped (asked for past R_old / 4),
-/// and the estimate of what the Fourier modes beyond `SHAPE_MODES` would move the marker
-/// (RMS over the angle at its radius; `caps`).
+/// [`lateral`]'s move (dx, dy) and the length its cap dropped (asked for past R_old / 4;
+/// `caps`).
 #[inline]
 pub(super) fn lateral_cut(
     m: &DiskMotion,
@@ -110,10 +100,10 @@ pub(super) fn lateral_cut(
     ey: f64,
     a: f64,
     u: [f64; 2],
-) -> (f64, f64, f64, f64) {
+) -> (f64, f64, f64) {
     let (r_old, p) = (m.r_old, &m.per_disk);
     if !p.lateral || a > m.r {
-        return (0.0, 0.0, 0.0, 0.0);
+        return (0.0, 0.0, 0.0);
     }
     // u_a(R_old, θ) = s Σ α_k cos kθ + β_k sin kθ: the uniform push at R_old times w − 1.
     let s = -p.push;
@@ -132,19 +122,13 @@ pub(super) fn lateral_cut(
         (pr, pi) = (pr * tx - pi * ty, pr * ty + pi * tx);
     }
     let (ux, uy) = (scale * wr, -scale * wi);
-    // The modes left out fall as (a / R_old)^(k−1), k > K, inside R_old.
-    let rest = if a <= r_old {
-        p.tail * (a * p.inv_r_old).powi(SHAPE_MODES as i32)
-    } else {
-        p.tail * (m.r - a) * p.inv_dr
-    };
     let (cap, len2) = (0.25 * r_old, ux * ux + uy * uy);
     if len2 > cap * cap {
         let len = len2.sqrt();
         let k = cap / len;
-        (ux * k, uy * k, len - cap, rest)
+        (ux * k, uy * k, len - cap)
     } else {
-        (ux, uy, 0.0, rest)
+        (ux, uy, 0.0)
     }
 }
 
@@ -172,8 +156,33 @@ pub fn prepare(motion: &mut [DiskMotion], h: f64) {
             inv_dr,
             lateral: widened && m.shape.iter().any(|&c| c != 0.0),
             tail: push * (2.0 * m.shape_rest).sqrt(),
+            may_cap: false,
         };
+        m.per_disk.may_cap = may_cap(m);
     }
+}
+
+/// Whether a cap of the moves can bind anywhere in disk `m` (prepared but for this): the
+/// push beyond R_old asks for more than R_old / 2; the squeeze u(a) = take F(a) / (2π a)
+/// for more than a / 2 somewhere, its largest ratio u / a = take c / (2π) being at the
+/// axis (F(a) / a² falls from c there, as the profile's speed falls); or the lateral move,
+/// at most push Σ |C_k| (|t| ≤ 1), for more than R_old / 4. Only such disks' moves are
+/// checked for what the caps drop (`caps`); the bounds keep a margin for rounding.
+fn may_cap(m: &DiskMotion) -> bool {
+    let p = &m.per_disk;
+    if !p.widened {
+        return false;
+    }
+    let margin = 1.0 - 1e-6;
+    let modes = || -> f64 {
+        let c = &m.shape;
+        (0..c.len() / 2)
+            .map(|k| (c[2 * k] * c[2 * k] + c[2 * k + 1] * c[2 * k + 1]).sqrt())
+            .sum()
+    };
+    p.push > 0.5 * m.r_old * margin
+        || p.take * p.profile.c / (2.0 * std::f64::consts::PI) > 0.5 * margin
+        || (p.lateral && p.push * modes() > 0.25 * m.r_old * margin)
 }
 
 #[cfg(test)]

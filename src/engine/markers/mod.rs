@@ -99,7 +99,7 @@ use rayon::prelude::*;
 use super::cadence::Cadence;
 
 pub use bins::Bins;
-pub use caps::{CapCount, CapTally, Cut, MarkerCaps};
+pub use caps::{CapCount, CapTally, Cut, MarkerCaps, ModesCount};
 pub use disk_moves::{lateral, prepare, radial};
 pub use lattice::{Lattice, Rim};
 pub use motion::{MotionField, Step};
@@ -270,30 +270,35 @@ pub fn move_markers(
         )
             .into_par_iter()
             .enumerate()
-            .fold(none, |(mut drawn, mut tally), (k, (x, y, z, g, w, (&id, &m)))| {
-                let s = field.step([*x, *y, *z], id);
-                *x += s.dx;
-                *y += s.dy;
-                *z += s.dz;
-                *g += s.strain;
-                *w += s.work;
-                tally.add(m, &s);
-                if s.drawn_by != u32::MAX {
-                    drawn.push((k, s.drawn_by));
-                }
-                (drawn, tally)
-            })
+            .fold(
+                none,
+                |(mut drawn, mut tally), (k, (x, y, z, g, w, (&id, &m)))| {
+                    let mut cut = Cut::default();
+                    let s = field.step_cut([*x, *y, *z], id, &mut cut);
+                    *x += s.dx;
+                    *y += s.dy;
+                    *z += s.dz;
+                    *g += s.strain;
+                    *w += s.work;
+                    tally.add(m, &s, &cut);
+                    if s.drawn_by != u32::MAX {
+                        drawn.push((k, s.drawn_by));
+                    }
+                    (drawn, tally)
+                },
+            )
             .reduce(none, |(mut a, ta), (mut b, tb)| {
                 a.append(&mut b);
                 (a, ta.merge(tb))
             });
     };
-    let steps: Vec<Step> = (0..mk.len())
+    let steps: Vec<(Step, Cut)> = (0..mk.len())
         .into_par_iter()
         .map(|k| {
-            let mut s = field.step([mk.x[k], mk.y[k], mk.z[k]], mk.id[k]);
+            let mut cut = Cut::default();
+            let mut s = field.step_cut([mk.x[k], mk.y[k], mk.z[k]], mk.id[k], &mut cut);
             extra(mk, k, &mut s);
-            s
+            (s, cut)
         })
         .collect();
     (
@@ -305,7 +310,7 @@ pub fn move_markers(
         &steps,
     )
         .into_par_iter()
-        .for_each(|(x, y, z, g, w, s)| {
+        .for_each(|(x, y, z, g, w, (s, _))| {
             *x += s.dx;
             *y += s.dy;
             *z += s.dz;
@@ -315,19 +320,19 @@ pub fn move_markers(
     mk.percolated
         .par_iter_mut()
         .zip(&steps)
-        .for_each(|(l, s)| *l += s.perc);
+        .for_each(|(l, s)| *l += s.0.perc);
     let tally = (&mk.mass, &steps)
         .into_par_iter()
-        .fold(CapTally::default, |mut t, (&m, s)| {
-            t.add(m, s);
+        .fold(CapTally::default, |mut t, (&m, (s, cut))| {
+            t.add(m, s, cut);
             t
         })
         .reduce(CapTally::default, CapTally::merge);
     let drawn = steps
         .iter()
         .enumerate()
-        .filter(|(_, s)| s.drawn_by != u32::MAX)
-        .map(|(k, s)| (k, s.drawn_by))
+        .filter(|(_, (s, _))| s.drawn_by != u32::MAX)
+        .map(|(k, (s, _))| (k, s.drawn_by))
         .collect();
     (drawn, tally)
 }
@@ -358,14 +363,15 @@ pub fn move_rows(
         .iter()
         .map(|c| (c[0] as usize, c[c.len() - 1] as usize + 1))
         .collect();
-    let steps: Vec<Step> = match extra {
+    let steps: Vec<(Step, Cut)> = match extra {
         Some(extra) => rows
             .par_iter()
             .map(|&k| {
                 let k = k as usize;
-                let mut s = fields[0].step([mk.x[k], mk.y[k], mk.z[k]], mk.id[k]);
+                let mut cut = Cut::default();
+                let mut s = fields[0].step_cut([mk.x[k], mk.y[k], mk.z[k]], mk.id[k], &mut cut);
                 extra(mk, k, &mut s);
-                s
+                (s, cut)
             })
             .collect(),
         None => Vec::new(),
@@ -388,11 +394,16 @@ pub fn move_rows(
             let (mut drawn, mut tally) = (Vec::new(), CapTally::default());
             for (n, &k) in rows.iter().enumerate() {
                 let i = k as usize - lo;
-                let s = if hooked {
+                let (s, cut) = if hooked {
                     steps[first + n]
                 } else {
                     let level = if cadence.is_some() { lv[i] } else { 0 };
-                    fields[level as usize].step([x[i], y[i], z[i]], ids[k as usize])
+                    let mut cut = Cut::default();
+                    let p = [x[i], y[i], z[i]];
+                    (
+                        fields[level as usize].step_cut(p, ids[k as usize], &mut cut),
+                        cut,
+                    )
                 };
                 x[i] += s.dx;
                 y[i] += s.dy;
@@ -402,11 +413,11 @@ pub fn move_rows(
                 if hooked {
                     l[i] += s.perc;
                 }
+                let moved = (s.dx * s.dx + s.dy * s.dy + s.dz * s.dz).sqrt();
+                tally.add_moved(mass[k as usize], moved, &cut);
                 if let Some((c, u)) = cadence {
-                    let moved = (s.dx * s.dx + s.dy * s.dy + s.dz * s.dz).sqrt();
                     lv[i] = c.next_level(lv[i], moved, u);
                 }
-                tally.add(mass[k as usize], &s);
                 if s.drawn_by != u32::MAX {
                     drawn.push((k as usize, s.drawn_by));
                 }

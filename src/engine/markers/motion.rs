@@ -9,8 +9,8 @@ use rand::Rng;
 use super::super::random::{marker_rng, TRANSFER_STREAM};
 
 use super::super::imz::{DiskMotion, ImzGeom, ImzGrid};
-use super::caps::{Cut, LATERAL, MODES, PUSH, RIM, SQUEEZE};
-use super::disk_moves::{lateral_cut, radial_cut, transfer};
+use super::caps::{Cut, LATERAL, PUSH, RIM, SQUEEZE};
+use super::disk_moves::{lateral, lateral_cut, radial, radial_cut, transfer};
 use super::WallReach;
 use crate::model::BlockModel;
 
@@ -57,8 +57,6 @@ pub struct Step {
     pub host: u32,
     /// Percolation distance (downward, ≥ 0) included in `dz`, m (`engine::fines`).
     pub perc: f64,
-    /// What the caps of the moves left out of this step (`caps`).
-    pub cut: Cut,
 }
 
 impl MotionField<'_> {
@@ -109,8 +107,15 @@ impl MotionField<'_> {
     /// (`tests::a_windows_step_split_…`, `docs::validation`).
     #[inline]
     pub fn step(&self, p: [f64; 3], id: u64) -> Step {
+        self.step_cut(p, id, &mut Cut::default())
+    }
+
+    /// [`MotionField::step`], adding to `cut` what the caps of the moves left out of it
+    /// (`caps`).
+    #[inline(always)]
+    pub fn step_cut(&self, p: [f64; 3], id: u64, cut: &mut Cut) -> Step {
         if !self.window {
-            return self.part(p, id, 1.0, false).0;
+            return self.part(p, id, 1.0, false, cut).0;
         }
         let mut sum = Step {
             drawn_by: u32::MAX,
@@ -120,12 +125,11 @@ impl MotionField<'_> {
         let (mut q, mut left) = (p, 1.0);
         for n in 1..=MAX_PARTS {
             // The last part, if a move reaches that far, takes the rest in one piece.
-            let (st, used) = self.part(q, id, left, n < MAX_PARTS);
+            let (st, used) = self.part(q, id, left, n < MAX_PARTS, cut);
             q = [q[0] + st.dx, q[1] + st.dy, q[2] + st.dz];
             sum.strain += st.strain;
             sum.work += st.work;
             sum.dbar += st.dbar;
-            sum.cut.add(&st.cut);
             if sum.host == u32::MAX {
                 sum.host = st.host;
             }
@@ -141,13 +145,16 @@ impl MotionField<'_> {
 
     /// The share `k` of this field's move from `p`. With `split`, the move stops at the
     /// first disk base it reaches, where the transfer maps the marker into the disk below;
-    /// returns the move and the share of it made (1 when no base was reached).
+    /// returns the move and the share of it made (1 when no base was reached), and adds
+    /// to `cut` what the caps left out of it.
     #[inline]
-    fn part(&self, p: [f64; 3], id: u64, k: f64, split: bool) -> (Step, f64) {
+    fn part(&self, p: [f64; 3], id: u64, k: f64, split: bool, cut: &mut Cut) -> (Step, f64) {
         let mut st = Step {
             drawn_by: u32::MAX,
             ..Default::default()
         };
+        // What the caps dropped from this part's disk moves (scaled with them when split).
+        let mut own = Cut::default();
         let mut strongest = 0.0f64;
         let mut total = 0.0f64;
         // Disk bases this marker may cross ([`Base`]). Whether it crosses is known only once
@@ -181,8 +188,7 @@ impl MotionField<'_> {
                 let dz = -k * dv * pd.fall * pd.profile.shape(a);
                 let inv_a = if a > 0.0 { 1.0 / a } else { 0.0 };
                 let (ux, uy) = (ex * inv_a, ey * inv_a);
-                let (da, mut cut_r) = radial_cut(m, a, inv_a);
-                let mut da = k * da;
+                let mut da = k * radial(m, a, inv_a);
                 // The inward move is the dilating ring pushing in along the marker's ray. In a
                 // disk cut by a wall or uncaved ground (A_f < 1) there is no ring on a ray that
                 // leaves the flowable ground before the new radius, so nothing pushes there
@@ -192,20 +198,14 @@ impl MotionField<'_> {
                         let reach = m.r * (1.0 - 1e-9);
                         let rim = bm.mirror([g.x + ux * reach, g.y + uy * reach, p[2]]);
                         if !bm.locate(rim).is_some_and(|b| bm.flowable(b, period)) {
-                            (da, cut_r) = (0.0, 0.0);
+                            da = 0.0;
                         }
                     }
                 }
-                let (lx, ly, cut_l, rest) = lateral_cut(m, ex, ey, a, [ux, uy]);
+                let (lx, ly) = lateral(m, ex, ey, a, [ux, uy]);
                 let (lx, ly) = (k * lx, k * ly);
-                if cut_r > 0.0 {
-                    st.cut.dropped[if a > m.r_old { PUSH } else { SQUEEZE }] += k * cut_r;
-                }
-                if pd.lateral && a <= m.r {
-                    st.cut.dropped[LATERAL] += k * cut_l;
-                    st.cut.dropped[MODES] += k * rest;
-                    st.cut.variance[0] += k * m.shape_rest;
-                    st.cut.variance[1] += k * m.shape_var;
+                if pd.may_cap {
+                    count_cut(&mut own, m, [ex, ey], a, k, da != 0.0);
                 }
                 st.dx += sx * (da * ux + lx);
                 st.dy += sy * (da * uy + ly);
@@ -282,7 +282,7 @@ impl MotionField<'_> {
             st.strain *= used;
             st.work *= used;
             st.dbar *= used;
-            st.cut.scale(used);
+            own.scale(used);
             st.dz = first - p[2];
         }
         let crosses = |b: &&Base| {
@@ -322,7 +322,7 @@ impl MotionField<'_> {
                 let (m, below) = (&motion[b.i as usize], &motion[b.i as usize - 1]);
                 if a > 0.0 && below.r > 0.0 && (below.r != m.r || below.w != m.w) {
                     // Beyond the rim the transfer maps the marker as if at the rim.
-                    st.cut.dropped[RIM] += (a - m.r).max(0.0);
+                    cut.dropped[RIM] += (a - m.r).max(0.0);
                     let (da, _) = transfer(m, below, a, 0.0);
                     st.dx += da * b.s[0] * ex / a;
                     st.dy += da * b.s[1] * ey / a;
@@ -340,7 +340,7 @@ impl MotionField<'_> {
                     }
                     let (m, below) = (&motion[i], &motion[i - 1]);
                     if below.r > 0.0 && (below.r != m.r || below.w != m.w) {
-                        st.cut.dropped[RIM] += (a - m.r).max(0.0);
+                        cut.dropped[RIM] += (a - m.r).max(0.0);
                         let (da_i, dz_i) = transfer(m, below, a, z_base - z);
                         (a, z) = ((a + da_i).max(0.0), z + dz_i);
                         (da, dz_t) = (da + da_i, dz_t + dz_i);
@@ -377,6 +377,9 @@ impl MotionField<'_> {
         if st.drawn_by != u32::MAX && p[2] + st.dz >= self.geoms[st.drawn_by as usize].z0 {
             st.drawn_by = u32::MAX;
         }
+        if own.any() {
+            cut.add(&own);
+        }
         (st, used)
     }
 }
@@ -396,6 +399,23 @@ impl MotionField<'_> {
         count([p[0], p[1]], p);
         self.images(p, |at, q, _, _| count(at, q));
         (tests, hits)
+    }
+}
+
+/// Adds to `cut` what the caps dropped from the share `k` of the moves of disk `m` of a
+/// marker at offset `e` from its axis, at radius `a` (`caps`); `pushed`: whether the ring
+/// pushes on its ray. Kept out of line: only disks where a cap can bind call it.
+#[cold]
+#[inline(never)]
+fn count_cut(cut: &mut Cut, m: &DiskMotion, e: [f64; 2], a: f64, k: f64, pushed: bool) {
+    let inv_a = if a > 0.0 { 1.0 / a } else { 0.0 };
+    let (_, cut_r) = radial_cut(m, a, inv_a);
+    if pushed && cut_r > 0.0 {
+        cut.dropped[if a > m.r_old { PUSH } else { SQUEEZE }] += k * cut_r;
+    }
+    let (_, _, cut_l) = lateral_cut(m, e[0], e[1], a, [e[0] * inv_a, e[1] * inv_a]);
+    if cut_l > 0.0 {
+        cut.dropped[LATERAL] += k * cut_l;
     }
 }
 
