@@ -20,7 +20,9 @@
 //!   (push √(2σ²) (R − a)/(R − R_old))² beyond it; that RMS, integrated over the disk at
 //!   its markers' bulk density ρ_s (1 − n1), is the estimate. By Cauchy–Schwarz it bounds
 //!   the mean length of that move; on a dilation that drops to 0 over a 40° arc it is
-//!   1.6–2.7 times the move itself (`tests::the_estimate_of_…`).
+//!   1.7 times the move itself (`tests::the_estimate_of_…`). It also takes every disk as
+//!   full of material at n1, which a column being drawn out is not, so it is an upper
+//!   estimate.
 //!
 //! What a cap drops is measured in tonne-metres: the marker's mass times the length of
 //! the move the cap left out (summed over the disks and images that move it, each at its
@@ -28,8 +30,9 @@
 //! `dropped_share` is the share of the moved material's displacement that the cap
 //! dropped. A marker is the cell of in-situ ground around its lattice site, so in ground
 //! of one density the mass weights are its volume's. The first four caps are counted
-//! marker by marker where they bind; counting the fifth so would cost the pass a term per
-//! disk and marker, so it is counted per disk.
+//! marker by marker where they bind, in the disks whose bounds let one bind at all
+//! (`PerDisk::may_cap`; the others cost the pass one test); counting the fifth so would
+//! cost a term per disk and marker, so it is counted per disk.
 //!
 //! The other bounds in the marker moves drop nothing: the radius after the radial move
 //! and after a transfer is kept ≥ 0, which neither reaches (the squeeze and the push take
