@@ -120,7 +120,7 @@ impl Engine<'_> {
             (c.candidate_tests, c.hits) = (c.candidate_tests + tests, c.hits + hits);
             c.marker_steps += lagging.len() as u64;
         }
-        let drawn = markers::move_rows(
+        let (drawn, caps) = markers::move_rows(
             &mut self.markers,
             &fields,
             None,
@@ -128,6 +128,7 @@ impl Engine<'_> {
             Some((&cadence, u)),
         );
         drop(fields);
+        self.out.marker_caps = self.out.marker_caps.merge(caps);
         self.geoms = geoms;
         self.after_move(period, lagging, drawn);
     }

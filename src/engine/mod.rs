@@ -442,6 +442,11 @@ impl<'a> Engine<'a> {
                 passes
             })
             .sum();
+        for &d in drawing {
+            let imz = &self.imzs[d];
+            let caps = &mut self.out.marker_caps;
+            caps.add_disks(&imz.motion, &imz.stagnant, imz.geom.h);
+        }
         self.charge(Phase::Growth, &mut t);
         let before = self.markers.len();
         self.engulf(period, drawing);
@@ -502,7 +507,7 @@ impl<'a> Engine<'a> {
             c.marker_steps += rows.len() as u64;
             a.charge(Phase::Counting, t.as_mut().unwrap());
         }
-        let drawn = if cadence.max_level == 0 && rows.len() == self.markers.len() {
+        let (drawn, caps) = if cadence.max_level == 0 && rows.len() == self.markers.len() {
             // Every marker is active: the contiguous pass (the same steps, no row windows).
             markers::move_markers(&mut self.markers, &fields[0], extra)
         } else {
@@ -510,6 +515,7 @@ impl<'a> Engine<'a> {
             markers::move_rows(&mut self.markers, &fields, extra, &rows, c)
         };
         drop(fields);
+        self.out.marker_caps = self.out.marker_caps.merge(caps);
         self.charge(Phase::MarkerPass, &mut t);
         self.geoms = geoms;
         self.restart_windows(&active);

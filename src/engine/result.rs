@@ -324,6 +324,9 @@ pub struct RunOutput {
     pub warnings: Vec<RunWarning>,
     /// Mass balance.
     pub balance: MassBalance,
+    /// The caps of the marker moves, counted over every marker step
+    /// (`engine::markers::caps`; `manifest.json`'s `marker_caps`).
+    pub marker_caps: super::markers::CapTally,
     /// Resolution used.
     pub resolution: ResolvedResolution,
     /// Stress fields at the chosen periods (empty unless `mechanisms.stress` is on).

@@ -10,6 +10,7 @@ use std::time::{SystemTime, UNIX_EPOCH};
 use serde::Serialize;
 
 use super::{write_atomic, OutputError};
+use crate::engine::markers::MarkerCaps;
 use crate::engine::result::{MassBalance, ResolvedResolution, RunOutput};
 use crate::model::load::InputFile;
 use crate::model::Scenario;
@@ -37,6 +38,9 @@ pub struct Manifest {
     pub wall_time_s: f64,
     /// Scheduled, credited and shortfall tonnes, overall and per drawpoint.
     pub mass_balance: MassBalance,
+    /// The caps of the marker moves: per cap, the marker steps it cut and the share of the
+    /// moved tonne-metres it dropped (`engine::markers::caps`).
+    pub marker_caps: MarkerCaps,
     /// Warnings raised during the run.
     pub warnings: Vec<String>,
 }
@@ -63,6 +67,7 @@ impl Manifest {
             threads,
             wall_time_s,
             mass_balance: run.balance.clone(),
+            marker_caps: run.marker_caps.report(),
             warnings: run.warnings.iter().map(|w| w.message.clone()).collect(),
         }
     }

@@ -295,6 +295,14 @@ pub const MANIFEST: TableSpec = TableSpec {
             &[],
         ),
         f(
+            "marker_caps",
+            Str,
+            "-",
+            "The caps of the marker moves over the run: moves (marker steps) and moved_tonne_metres (sum of marker mass times step length, t m); per cap (push: the ring's push beyond R_old, at most R_old/2; squeeze: inside R_old, at most a/2; lateral: at most R_old/4; transfer_rim: a split step's transfer taken from beyond the disk's rim) the steps it cut (moves, share of all steps) and what it dropped (dropped_tonne_metres: mass times the length of the move left out; dropped_share: over moved_tonne_metres); shape_modes: the lateral move's Fourier modes beyond the kept ones, estimated per disk update (disk_updates with a lateral move, dropped_tonne_metres and dropped_share of the RMS estimate, variance_share: the share of the ring dilation's variance beyond the kept modes)",
+            true,
+            &[],
+        ),
+        f(
             "warnings",
             Str,
             "-",

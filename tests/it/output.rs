@@ -311,6 +311,20 @@ fn fake_run(scene: &Scene) -> RunOutput {
             draw_increment: 250.0,
             max_marker_move: 0.95,
         },
+        marker_caps: {
+            // One 10 t marker moved 5 m, 0.5 m of its ring's push cut.
+            use caveflow::engine::markers::{CapTally, Cut, Step};
+            let s = Step {
+                dx: 3.0,
+                dz: -4.0,
+                ..Default::default()
+            };
+            let mut cut = Cut::default();
+            cut.dropped[0] = 0.5;
+            let mut t = CapTally::default();
+            t.add(10.0, &s, &cut);
+            t
+        },
         stress: Vec::new(),
         trace: Default::default(),
         control: None,
@@ -543,6 +557,24 @@ fn manifest_records_the_run() {
         (Some(0.98), Some(1.0))
     );
     assert_eq!(c["at_upper_bound"], 1);
+    let caps = &m["marker_caps"];
+    assert_eq!(
+        (caps["moves"].as_u64(), caps["moved_tonne_metres"].as_f64()),
+        (Some(1), Some(50.0))
+    );
+    let push = &caps["push"];
+    assert_eq!(
+        (push["moves"].as_u64(), push["share"].as_f64()),
+        (Some(1), Some(1.0))
+    );
+    assert_eq!(
+        (
+            push["dropped_tonne_metres"].as_f64(),
+            push["dropped_share"].as_f64()
+        ),
+        (Some(5.0), Some(0.1))
+    );
+    assert_eq!(caps["lateral"]["dropped_share"].as_f64(), Some(0.0));
     assert_eq!(m["resolution"]["layer_thickness"], 3.8);
     assert_eq!(m["warnings"][0], run.warnings[0].message);
     assert_eq!(m["scenario"]["dilution"]["grade"], "mo");

@@ -32,6 +32,11 @@ pub struct DiskMotion {
     pub d: f64,
     /// The ring's dilation around the perimeter ([`Stagnant::shape`](super::Stagnant::shape)).
     pub shape: [f64; 2 * SHAPE_MODES],
+    /// The variance of the ring's dilation beyond the kept modes, and all of it
+    /// ([`Stagnant::shape_rest`](super::Stagnant::shape_rest)).
+    pub shape_rest: f64,
+    /// See `shape_rest`.
+    pub shape_var: f64,
     /// The marker pass's constants of this disk, the same for every marker it moves
     /// (`engine::markers::prepare`; zero until then).
     pub per_disk: PerDisk,
@@ -61,6 +66,12 @@ pub struct PerDisk {
     pub inv_dr: f64,
     /// Whether the ring's dilation differs around the perimeter (a lateral move).
     pub lateral: bool,
+    /// push √(2 σ²), σ² the dilation's variance beyond the kept modes: the RMS of what the
+    /// modes left out would move a marker at R_old (`engine::markers::caps`), m.
+    pub tail: f64,
+    /// Whether a cap of the push, the squeeze or the lateral move can bind in this disk
+    /// (`engine::markers::caps`): only then does the pass count what the caps drop.
+    pub may_cap: bool,
 }
 
 /// The shape of a disk's vertical velocity profile (summary §3.3): a plug of radius

@@ -50,6 +50,12 @@ pub struct Stagnant {
     /// the mean over the flowable points (0 where already dilated, 1 all round in uniform
     /// ground). The marker pass reads it (`engine::markers::lateral`).
     pub shape: [f64; 2 * SHAPE_MODES],
+    /// The variance of w − 1 over the perimeter's samples (mean square: its mean is 0)
+    /// beyond the modes kept in `shape`, which the lateral move leaves out
+    /// (`engine::markers::caps`); under 10⁻¹² (rounding) it is 0.
+    pub shape_rest: f64,
+    /// The variance of w − 1 over the perimeter's samples, all of it.
+    pub shape_var: f64,
 }
 
 impl Stagnant {
@@ -186,7 +192,7 @@ impl Ground<'_> {
         // Per mode m: Σ j cos mθ, Σ j sin mθ over the flowable points (j their jump now),
         // and Σ cos mθ, Σ sin mθ over the same points, so that the shape of w − 1 =
         // j / mean − 1 comes out of one pass.
-        let (mut sum, mut n) = (0.0, 0usize);
+        let (mut sum, mut sum2, mut n) = (0.0, 0.0, 0usize);
         let mut sj = [0.0; 2 * SHAPE_MODES];
         let mut s1 = [0.0; 2 * SHAPE_MODES];
         let (dc, ds) = (
@@ -224,6 +230,7 @@ impl Ground<'_> {
                 };
             let j = if dilated { 0.0 } else { pj };
             sum += j;
+            sum2 += j * j;
             n += 1;
             let (mut cm, mut sm) = (ck, sk);
             for m in 0..SHAPE_MODES {
@@ -236,6 +243,7 @@ impl Ground<'_> {
         }
         s.dilation_at = radius;
         s.shape = [0.0; 2 * SHAPE_MODES];
+        (s.shape_rest, s.shape_var) = (0.0, 0.0);
         if n == 0 {
             s.n0 = s.n1;
             return;
@@ -247,6 +255,15 @@ impl Ground<'_> {
             for (a, (j, one)) in s.shape.iter_mut().zip(sj.iter().zip(&s1)) {
                 *a = scale * (j / mean - one);
             }
+            // w − 1 is j / mean − 1 at the flowable points and 0 elsewhere, of mean 0 over
+            // the n_pts samples; its mean square is Σ j² / mean² − n over n_pts, and the
+            // kept modes hold ½ Σ (α_k² + β_k²) of it (Parseval over the samples, k <
+            // n_pts / 2).
+            let var = ((sum2 / (mean * mean) - n as f64) / n_pts as f64).max(0.0);
+            let kept = 0.5 * s.shape.iter().map(|c| c * c).sum::<f64>();
+            let rest = var - kept;
+            s.shape_var = var;
+            s.shape_rest = if rest > 1e-12 { rest } else { 0.0 };
         }
     }
 }

@@ -430,6 +430,7 @@ impl Imz {
             m.area_frac = st.area_frac.max(1.0 / 96.0);
             m.flow_frac = st.flow_frac.max(1.0 / PERIMETER_POINTS as f64);
             m.shape = st.shape;
+            (m.shape_rest, m.shape_var) = (st.shape_rest, st.shape_var);
             m.w = p.shear_band_factor * d;
             m.d = d;
             m.sigma_n = rho1 * 9.81 * m.r / (2.0 * phi.to_radians().tan().max(1e-6));

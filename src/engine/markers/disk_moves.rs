@@ -3,7 +3,7 @@
 //! part where the ring's dilation is not the same all round, and the per-disk constants
 //! ([`PerDisk`]) they read (summary §3.3; see the module above for the equations).
 
-use super::super::imz::{DiskMotion, PerDisk, Profile};
+use super::super::imz::{DiskMotion, PerDisk, Profile, SHAPE_MODES};
 
 /// The transfer (Δa′, Δz′) of a marker at radius `a` in disk `here` that the update carried
 /// `depth` below the disk's base, into the disk `below`.
@@ -47,15 +47,23 @@ pub(super) fn transfer(here: &DiskMotion, below: &DiskMotion, a: f64, depth: f64
 /// `m.per_disk` must be prepared ([`prepare`]).
 #[inline]
 pub fn radial(m: &DiskMotion, a: f64, inv_a: f64) -> f64 {
+    radial_cut(m, a, inv_a).0
+}
+
+/// [`radial`]'s move and the length its cap dropped (the push beyond R_old asked for past
+/// R_old / 2, the squeeze inside it past a / 2; `caps`).
+#[inline]
+pub(super) fn radial_cut(m: &DiskMotion, a: f64, inv_a: f64) -> (f64, f64) {
     let p = &m.per_disk;
     if !p.widened || a > m.r || !(a > 0.0) {
-        return 0.0;
+        return (0.0, 0.0);
     }
     if a > m.r_old {
-        -p.push.min(0.5 * m.r_old) * (1.0 - (a - m.r_old) * p.inv_dr)
+        let (cap, fall) = (0.5 * m.r_old, 1.0 - (a - m.r_old) * p.inv_dr);
+        (-p.push.min(cap) * fall, (p.push - cap).max(0.0) * fall)
     } else {
         let u = p.take * p.profile.flux_inside(a) * (0.5 * std::f64::consts::FRAC_1_PI) * inv_a;
-        -u.min(0.5 * a)
+        (-u.min(0.5 * a), (u - 0.5 * a).max(0.0))
     }
 }
 
@@ -79,9 +87,23 @@ pub fn radial(m: &DiskMotion, a: f64, inv_a: f64) -> f64 {
 /// `m.per_disk` must be prepared ([`prepare`]).
 #[inline]
 pub fn lateral(m: &DiskMotion, ex: f64, ey: f64, a: f64, u: [f64; 2]) -> (f64, f64) {
+    let (lx, ly, _) = lateral_cut(m, ex, ey, a, u);
+    (lx, ly)
+}
+
+/// [`lateral`]'s move (dx, dy) and the length its cap dropped (asked for past R_old / 4;
+/// `caps`).
+#[inline]
+pub(super) fn lateral_cut(
+    m: &DiskMotion,
+    ex: f64,
+    ey: f64,
+    a: f64,
+    u: [f64; 2],
+) -> (f64, f64, f64) {
     let (r_old, p) = (m.r_old, &m.per_disk);
     if !p.lateral || a > m.r {
-        return (0.0, 0.0);
+        return (0.0, 0.0, 0.0);
     }
     // u_a(R_old, θ) = s Σ α_k cos kθ + β_k sin kθ: the uniform push at R_old times w − 1.
     let s = -p.push;
@@ -93,7 +115,7 @@ pub fn lateral(m: &DiskMotion, ex: f64, ey: f64, a: f64, u: [f64; 2]) -> (f64, f
     // W'(z) = s Σ (α_k − i β_k) t^(k−1), t = z / R_old; u = (Re W', −Im W').
     let (mut wr, mut wi) = (0.0, 0.0);
     let (mut pr, mut pi) = (1.0, 0.0);
-    for k in 0..super::super::imz::SHAPE_MODES {
+    for k in 0..SHAPE_MODES {
         let (al, be) = (m.shape[2 * k], m.shape[2 * k + 1]);
         wr += al * pr + be * pi;
         wi += al * pi - be * pr;
@@ -102,10 +124,11 @@ pub fn lateral(m: &DiskMotion, ex: f64, ey: f64, a: f64, u: [f64; 2]) -> (f64, f
     let (ux, uy) = (scale * wr, -scale * wi);
     let (cap, len2) = (0.25 * r_old, ux * ux + uy * uy);
     if len2 > cap * cap {
-        let k = cap / len2.sqrt();
-        (ux * k, uy * k)
+        let len = len2.sqrt();
+        let k = cap / len;
+        (ux * k, uy * k, len - cap)
     } else {
-        (ux, uy)
+        (ux, uy, 0.0)
     }
 }
 
@@ -132,8 +155,34 @@ pub fn prepare(motion: &mut [DiskMotion], h: f64) {
             inv_r_old,
             inv_dr,
             lateral: widened && m.shape.iter().any(|&c| c != 0.0),
+            tail: push * (2.0 * m.shape_rest).sqrt(),
+            may_cap: false,
         };
+        m.per_disk.may_cap = may_cap(m);
     }
+}
+
+/// Whether a cap of the moves can bind anywhere in disk `m` (prepared but for this): the
+/// push beyond R_old asks for more than R_old / 2; the squeeze u(a) = take F(a) / (2π a)
+/// for more than a / 2 somewhere, its largest ratio u / a = take c / (2π) being at the
+/// axis (F(a) / a² falls from c there, as the profile's speed falls); or the lateral move,
+/// at most push Σ |C_k| (|t| ≤ 1), for more than R_old / 4. Only such disks' moves are
+/// checked for what the caps drop (`caps`); the bounds keep a margin for rounding.
+fn may_cap(m: &DiskMotion) -> bool {
+    let p = &m.per_disk;
+    if !p.widened {
+        return false;
+    }
+    let margin = 1.0 - 1e-6;
+    let modes = || -> f64 {
+        let c = &m.shape;
+        (0..c.len() / 2)
+            .map(|k| (c[2 * k] * c[2 * k] + c[2 * k + 1] * c[2 * k + 1]).sqrt())
+            .sum()
+    };
+    p.push > 0.5 * m.r_old * margin
+        || p.take * p.profile.c / (2.0 * std::f64::consts::PI) > 0.5 * margin
+        || (p.lateral && p.push * modes() > 0.25 * m.r_old * margin)
 }
 
 #[cfg(test)]

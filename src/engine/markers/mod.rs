@@ -88,6 +88,7 @@
 //! A marker that leaves the lowest disk is drawn, credited to the IMZ that moved it most.
 
 mod bins;
+mod caps;
 mod disk_moves;
 mod lattice;
 mod motion;
@@ -98,6 +99,7 @@ use rayon::prelude::*;
 use super::cadence::Cadence;
 
 pub use bins::Bins;
+pub use caps::{CapCount, CapTally, Cut, MarkerCaps, ModesCount};
 pub use disk_moves::{lateral, prepare, radial};
 pub use lattice::{Lattice, Rim};
 pub use motion::{MotionField, Step};
@@ -245,45 +247,58 @@ impl Markers {
 pub type StepHook<'a> = &'a (dyn Fn(&Markers, usize, &mut Step) + Sync);
 
 /// Moves every marker once (parallel, pure per marker, so the result does not depend on
-/// the number of threads). Returns the rows drawn, in row order, with their drawpoint.
-/// `extra` may add to each marker's step before it is applied (fines percolation); it must
-/// be pure per marker too.
+/// the number of threads). Returns the rows drawn, in row order, with their drawpoint,
+/// and the caps' counts over the steps (`caps`). `extra` may add to each marker's step
+/// before it is applied (fines percolation); it must be pure per marker too.
 pub fn move_markers(
     mk: &mut Markers,
     field: &MotionField,
     extra: Option<StepHook>,
-) -> Vec<(usize, u32)> {
+) -> (Vec<(usize, u32)>, CapTally) {
     let Some(extra) = extra else {
         // No hook reads the markers: step and apply in one pass. A marker's step depends
         // on its own position only, so this is the two-pass result bit for bit, without the
         // per-update array of steps (72 bytes a marker, fresh pages every update).
+        let none = || (Vec::new(), CapTally::default());
         return (
             mk.x.par_iter_mut(),
             mk.y.par_iter_mut(),
             mk.z.par_iter_mut(),
             mk.strain.par_iter_mut(),
             mk.work.par_iter_mut(),
-            mk.id.par_iter(),
+            (mk.id.par_iter(), mk.mass.par_iter()),
         )
             .into_par_iter()
             .enumerate()
-            .filter_map(|(k, (x, y, z, g, w, &id))| {
-                let s = field.step([*x, *y, *z], id);
-                *x += s.dx;
-                *y += s.dy;
-                *z += s.dz;
-                *g += s.strain;
-                *w += s.work;
-                (s.drawn_by != u32::MAX).then_some((k, s.drawn_by))
-            })
-            .collect();
+            .fold(
+                none,
+                |(mut drawn, mut tally), (k, (x, y, z, g, w, (&id, &m)))| {
+                    let mut cut = Cut::default();
+                    let s = field.step_cut([*x, *y, *z], id, &mut cut);
+                    *x += s.dx;
+                    *y += s.dy;
+                    *z += s.dz;
+                    *g += s.strain;
+                    *w += s.work;
+                    tally.add(m, &s, &cut);
+                    if s.drawn_by != u32::MAX {
+                        drawn.push((k, s.drawn_by));
+                    }
+                    (drawn, tally)
+                },
+            )
+            .reduce(none, |(mut a, ta), (mut b, tb)| {
+                a.append(&mut b);
+                (a, ta.merge(tb))
+            });
     };
-    let steps: Vec<Step> = (0..mk.len())
+    let steps: Vec<(Step, Cut)> = (0..mk.len())
         .into_par_iter()
         .map(|k| {
-            let mut s = field.step([mk.x[k], mk.y[k], mk.z[k]], mk.id[k]);
+            let mut cut = Cut::default();
+            let mut s = field.step_cut([mk.x[k], mk.y[k], mk.z[k]], mk.id[k], &mut cut);
             extra(mk, k, &mut s);
-            s
+            (s, cut)
         })
         .collect();
     (
@@ -295,7 +310,7 @@ pub fn move_markers(
         &steps,
     )
         .into_par_iter()
-        .for_each(|(x, y, z, g, w, s)| {
+        .for_each(|(x, y, z, g, w, (s, _))| {
             *x += s.dx;
             *y += s.dy;
             *z += s.dz;
@@ -305,13 +320,21 @@ pub fn move_markers(
     mk.percolated
         .par_iter_mut()
         .zip(&steps)
-        .for_each(|(l, s)| *l += s.perc);
-    steps
+        .for_each(|(l, s)| *l += s.0.perc);
+    let tally = (&mk.mass, &steps)
+        .into_par_iter()
+        .fold(CapTally::default, |mut t, (&m, (s, cut))| {
+            t.add(m, s, cut);
+            t
+        })
+        .reduce(CapTally::default, CapTally::merge);
+    let drawn = steps
         .iter()
         .enumerate()
-        .filter(|(_, s)| s.drawn_by != u32::MAX)
-        .map(|(k, s)| (k, s.drawn_by))
-        .collect()
+        .filter(|(_, (s, _))| s.drawn_by != u32::MAX)
+        .map(|(k, (s, _))| (k, s.drawn_by))
+        .collect();
+    (drawn, tally)
 }
 
 /// Moves the marker rows `rows` (ascending, distinct) once: [`move_markers`] restricted to
@@ -321,16 +344,17 @@ pub fn move_markers(
 ///
 /// `fields[L]` is the motion of cadence level L (`engine::cadence`). Without a cadence
 /// every row steps by `fields[0]`; with `(cadence, u)` each row steps by its own level's
-/// field and then takes its next level for update `u`.
+/// field and then takes its next level for update `u`. Each chunk counts the caps over
+/// its steps (`caps`), and the chunks' counts are added after the pass.
 pub fn move_rows(
     mk: &mut Markers,
     fields: &[MotionField],
     extra: Option<StepHook>,
     rows: &[u32],
     cadence: Option<(&Cadence, u64)>,
-) -> Vec<(usize, u32)> {
+) -> (Vec<(usize, u32)>, CapTally) {
     if rows.is_empty() {
-        return Vec::new();
+        return (Vec::new(), CapTally::default());
     }
     debug_assert!(rows.windows(2).all(|w| w[0] < w[1]));
     let chunk = (rows.len() / (16 * rayon::current_num_threads())).max(256);
@@ -339,22 +363,23 @@ pub fn move_rows(
         .iter()
         .map(|c| (c[0] as usize, c[c.len() - 1] as usize + 1))
         .collect();
-    let steps: Vec<Step> = match extra {
+    let steps: Vec<(Step, Cut)> = match extra {
         Some(extra) => rows
             .par_iter()
             .map(|&k| {
                 let k = k as usize;
-                let mut s = fields[0].step([mk.x[k], mk.y[k], mk.z[k]], mk.id[k]);
+                let mut cut = Cut::default();
+                let mut s = fields[0].step_cut([mk.x[k], mk.y[k], mk.z[k]], mk.id[k], &mut cut);
                 extra(mk, k, &mut s);
-                s
+                (s, cut)
             })
             .collect(),
         None => Vec::new(),
     };
     let (hooked, steps) = (extra.is_some(), &steps[..]);
-    let ids = &mk.id;
+    let (ids, mass) = (&mk.id, &mk.mass);
     let firsts: Vec<usize> = (0..chunks.len()).map(|c| c * chunk).collect();
-    let drawn: Vec<Vec<(usize, u32)>> = (
+    let drawn: Vec<(Vec<(usize, u32)>, CapTally)> = (
         (chunks, spans.clone(), firsts),
         windows(&mut mk.x, &spans),
         windows(&mut mk.y, &spans),
@@ -366,14 +391,19 @@ pub fn move_rows(
     )
         .into_par_iter()
         .map(|((rows, (lo, _), first), x, y, z, g, w, l, lv)| {
-            let mut drawn = Vec::new();
+            let (mut drawn, mut tally) = (Vec::new(), CapTally::default());
             for (n, &k) in rows.iter().enumerate() {
                 let i = k as usize - lo;
-                let s = if hooked {
+                let (s, cut) = if hooked {
                     steps[first + n]
                 } else {
                     let level = if cadence.is_some() { lv[i] } else { 0 };
-                    fields[level as usize].step([x[i], y[i], z[i]], ids[k as usize])
+                    let mut cut = Cut::default();
+                    let p = [x[i], y[i], z[i]];
+                    (
+                        fields[level as usize].step_cut(p, ids[k as usize], &mut cut),
+                        cut,
+                    )
                 };
                 x[i] += s.dx;
                 y[i] += s.dy;
@@ -383,18 +413,20 @@ pub fn move_rows(
                 if hooked {
                     l[i] += s.perc;
                 }
+                let moved = (s.dx * s.dx + s.dy * s.dy + s.dz * s.dz).sqrt();
+                tally.add_moved(mass[k as usize], moved, &cut);
                 if let Some((c, u)) = cadence {
-                    let moved = (s.dx * s.dx + s.dy * s.dy + s.dz * s.dz).sqrt();
                     lv[i] = c.next_level(lv[i], moved, u);
                 }
                 if s.drawn_by != u32::MAX {
                     drawn.push((k as usize, s.drawn_by));
                 }
             }
-            drawn
+            (drawn, tally)
         })
         .collect();
-    drawn.concat()
+    let tally = drawn.iter().fold(CapTally::default(), |t, d| t.merge(d.1));
+    (drawn.into_iter().flat_map(|d| d.0).collect(), tally)
 }
 
 /// The candidate tests and hits of a marker pass over `rows` (`engine::account`), each row

@@ -10,7 +10,8 @@ use smallvec::SmallVec;
 use super::super::random::{marker_rng, TRANSFER_STREAM};
 
 use super::super::imz::{DiskMotion, ImzGeom, ImzGrid};
-use super::disk_moves::{lateral, radial, transfer};
+use super::caps::{Cut, LATERAL, PUSH, RIM, SQUEEZE};
+use super::disk_moves::{lateral, lateral_cut, radial, radial_cut, transfer};
 use super::WallReach;
 use crate::model::BlockModel;
 
@@ -107,8 +108,15 @@ impl MotionField<'_> {
     /// (`tests::a_windows_step_split_…`, `docs::validation`).
     #[inline]
     pub fn step(&self, p: [f64; 3], id: u64) -> Step {
+        self.step_cut(p, id, &mut Cut::default())
+    }
+
+    /// [`MotionField::step`], adding to `cut` what the caps of the moves left out of it
+    /// (`caps`).
+    #[inline(always)]
+    pub fn step_cut(&self, p: [f64; 3], id: u64, cut: &mut Cut) -> Step {
         if !self.window {
-            return self.part(p, id, 1.0, false).0;
+            return self.part(p, id, 1.0, false, cut).0;
         }
         let mut sum = Step {
             drawn_by: u32::MAX,
@@ -118,7 +126,7 @@ impl MotionField<'_> {
         let (mut q, mut left) = (p, 1.0);
         for n in 1..=MAX_PARTS {
             // The last part, if a move reaches that far, takes the rest in one piece.
-            let (st, used) = self.part(q, id, left, n < MAX_PARTS);
+            let (st, used) = self.part(q, id, left, n < MAX_PARTS, cut);
             q = [q[0] + st.dx, q[1] + st.dy, q[2] + st.dz];
             sum.strain += st.strain;
             sum.work += st.work;
@@ -138,13 +146,16 @@ impl MotionField<'_> {
 
     /// The share `k` of this field's move from `p`. With `split`, the move stops at the
     /// first disk base it reaches, where the transfer maps the marker into the disk below;
-    /// returns the move and the share of it made (1 when no base was reached).
+    /// returns the move and the share of it made (1 when no base was reached), and adds
+    /// to `cut` what the caps left out of it.
     #[inline]
-    fn part(&self, p: [f64; 3], id: u64, k: f64, split: bool) -> (Step, f64) {
+    fn part(&self, p: [f64; 3], id: u64, k: f64, split: bool, cut: &mut Cut) -> (Step, f64) {
         let mut st = Step {
             drawn_by: u32::MAX,
             ..Default::default()
         };
+        // What the caps dropped from this part's disk moves (scaled with them when split).
+        let mut own = Cut::default();
         let mut strongest = 0.0f64;
         let mut total = 0.0f64;
         // Disk bases this marker may cross ([`Base`]). Whether it crosses is known only once
@@ -192,6 +203,9 @@ impl MotionField<'_> {
                 }
                 let (lx, ly) = lateral(m, ex, ey, a, [ux, uy]);
                 let (lx, ly) = (k * lx, k * ly);
+                if pd.may_cap {
+                    count_cut(&mut own, m, [ex, ey], a, k, da != 0.0);
+                }
                 st.dx += sx * (da * ux + lx);
                 st.dy += sy * (da * uy + ly);
                 st.dz += dz;
@@ -261,6 +275,7 @@ impl MotionField<'_> {
             st.strain *= used;
             st.work *= used;
             st.dbar *= used;
+            own.scale(used);
             st.dz = first - p[2];
         }
         let crosses = |b: &&Base| {
@@ -299,6 +314,8 @@ impl MotionField<'_> {
                 let a = (ex * ex + ey * ey).sqrt();
                 let (m, below) = (&motion[b.i as usize], &motion[b.i as usize - 1]);
                 if a > 0.0 && below.r > 0.0 && (below.r != m.r || below.w != m.w) {
+                    // Beyond the rim the transfer maps the marker as if at the rim.
+                    cut.dropped[RIM] += (a - m.r).max(0.0);
                     let (da, _) = transfer(m, below, a, 0.0);
                     st.dx += da * b.s[0] * ex / a;
                     st.dy += da * b.s[1] * ey / a;
@@ -316,6 +333,7 @@ impl MotionField<'_> {
                     }
                     let (m, below) = (&motion[i], &motion[i - 1]);
                     if below.r > 0.0 && (below.r != m.r || below.w != m.w) {
+                        cut.dropped[RIM] += (a - m.r).max(0.0);
                         let (da_i, dz_i) = transfer(m, below, a, z_base - z);
                         (a, z) = ((a + da_i).max(0.0), z + dz_i);
                         (da, dz_t) = (da + da_i, dz_t + dz_i);
@@ -352,6 +370,9 @@ impl MotionField<'_> {
         if st.drawn_by != u32::MAX && p[2] + st.dz >= self.geoms[st.drawn_by as usize].z0 {
             st.drawn_by = u32::MAX;
         }
+        if own.any() {
+            cut.add(&own);
+        }
         (st, used)
     }
 }
@@ -371,6 +392,23 @@ impl MotionField<'_> {
         count([p[0], p[1]], p);
         self.images(p, |at, q, _, _| count(at, q));
         (tests, hits)
+    }
+}
+
+/// Adds to `cut` what the caps dropped from the share `k` of the moves of disk `m` of a
+/// marker at offset `e` from its axis, at radius `a` (`caps`); `pushed`: whether the ring
+/// pushes on its ray. Kept out of line: only disks where a cap can bind call it.
+#[cold]
+#[inline(never)]
+fn count_cut(cut: &mut Cut, m: &DiskMotion, e: [f64; 2], a: f64, k: f64, pushed: bool) {
+    let inv_a = if a > 0.0 { 1.0 / a } else { 0.0 };
+    let (_, cut_r) = radial_cut(m, a, inv_a);
+    if pushed && cut_r > 0.0 {
+        cut.dropped[if a > m.r_old { PUSH } else { SQUEEZE }] += k * cut_r;
+    }
+    let (_, _, cut_l) = lateral_cut(m, e[0], e[1], a, [e[0] * inv_a, e[1] * inv_a]);
+    if cut_l > 0.0 {
+        cut.dropped[LATERAL] += k * cut_l;
     }
 }
 
