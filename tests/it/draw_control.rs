@@ -8,6 +8,7 @@ use caveflow::engine::{Engine, RunOutput};
 use caveflow::model::demo::{self, DemoScale};
 use caveflow::model::scenario::{DrawControl, Strategy};
 use caveflow::model::{Scenario, Scene};
+use caveflow::output::report::draw_control::hod_spread;
 
 /// The demo panel over its first `periods` months, at 3 m markers (a quick run: these
 /// tests are about the control, not the flow's resolution).
@@ -144,20 +145,12 @@ fn uniform_draw_keeps_neighbours_heights_of_draw_closer() {
     let (scene, mut sc) = demo_scene(10);
     let layout = Layout::new(&scene, None);
     let gap = |out: &RunOutput| {
-        let n = scene.drawpoints.len();
-        let mut hod = vec![0.0; n];
+        let mut hod = vec![0.0; scene.drawpoints.len()];
         let ex = &out.extraction;
         for k in 0..ex.drawpoint.len() {
             hod[ex.drawpoint[k] as usize] = ex.hod[k];
         }
-        let gaps: Vec<f64> = (0..n)
-            .filter(|&d| !layout.neighbours[d].is_empty())
-            .map(|d| {
-                let near = &layout.neighbours[d];
-                (hod[d] - near.iter().map(|&e| hod[e]).sum::<f64>() / near.len() as f64).abs()
-            })
-            .collect();
-        gaps.iter().sum::<f64>() / gaps.len() as f64
+        hod_spread(&scene, &hod, &layout)
     };
     sc.draw_control = DrawControl {
         max_rate: Some(400.0),
