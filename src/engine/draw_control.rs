@@ -58,17 +58,12 @@ impl Layout {
         let n = dp.len();
         let dist = |a: usize, b: usize| (dp.x[a] - dp.x[b]).hypot(dp.y[a] - dp.y[b]);
         let radius = radius.unwrap_or_else(|| {
-            let mut nearest: Vec<f64> = (0..n)
-                .map(|a| {
-                    (0..n)
-                        .filter(|&b| b != a)
-                        .map(|b| dist(a, b))
-                        .fold(f64::INFINITY, f64::min)
-                })
-                .filter(|x| x.is_finite())
-                .collect();
-            nearest.sort_by(f64::total_cmp);
-            nearest.get(nearest.len() / 2).map_or(0.0, |m| 1.5 * m)
+            let s = dp.median_spacing();
+            if s.is_nan() {
+                0.0
+            } else {
+                1.5 * s
+            }
         });
         let top = scene.blocks.z_max();
         Layout {

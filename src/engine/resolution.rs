@@ -227,21 +227,7 @@ pub fn expected_grade_rmse(scene: &Scene, res: &ResolvedResolution) -> (f64, f64
 /// Median over drawpoints of the distance to the nearest other drawpoint (NaN with fewer
 /// than two).
 fn drawpoint_spacing(scene: &Scene) -> f64 {
-    let dp = &scene.drawpoints;
-    let n = dp.len();
-    if n < 2 {
-        return f64::NAN;
-    }
-    let mut near: Vec<f64> = (0..n)
-        .map(|a| {
-            (0..n)
-                .filter(|&b| b != a)
-                .map(|b| ((dp.x[a] - dp.x[b]).powi(2) + (dp.y[a] - dp.y[b]).powi(2)).sqrt())
-                .fold(f64::INFINITY, f64::min)
-        })
-        .collect();
-    near.sort_by(f64::total_cmp);
-    near[n / 2]
+    scene.drawpoints.median_spacing()
 }
 
 /// Mean fragment size d̄ over the blocks, m (NaN without blocks).

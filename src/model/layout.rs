@@ -38,6 +38,26 @@ impl Drawpoints {
     pub fn opens_at(&self, d: usize) -> Option<i64> {
         self.open_period.get(d).copied().flatten()
     }
+    /// Median over drawpoints of the distance in plan to the nearest other drawpoint, m
+    /// (NaN with fewer than two).
+    pub fn median_spacing(&self) -> f64 {
+        let n = self.len();
+        if n < 2 {
+            return f64::NAN;
+        }
+        let mut near: Vec<f64> = (0..n)
+            .map(|a| {
+                (0..n)
+                    .filter(|&b| b != a)
+                    .map(|b| {
+                        ((self.x[a] - self.x[b]).powi(2) + (self.y[a] - self.y[b]).powi(2)).sqrt()
+                    })
+                    .fold(f64::INFINITY, f64::min)
+            })
+            .collect();
+        near.sort_by(f64::total_cmp);
+        near[n / 2]
+    }
     /// Index of a drawpoint by name.
     pub fn find(&self, name: &str) -> Option<usize> {
         self.name.iter().position(|n| n == name)

@@ -6,12 +6,13 @@
 use std::path::{Path, PathBuf};
 
 use super::page::Page;
+use super::run::drawpoint_points;
 use super::ReportError;
 use crate::engine::draw_control::Layout;
 use crate::engine::result::RunOutput;
 use crate::engine::result::{BestHod, ControlRecord, ValueTable};
 use crate::model::Scene;
-use crate::output::charts::{fmt_mass, line_chart, plan_map_chart, LineSeries, MapPoint, MapScale};
+use crate::output::charts::{fmt_mass, line_chart, plan_map_chart, LineSeries, MapScale};
 
 /// Most drawpoints whose value curves are drawn (the highest and lowest final values and
 /// those between, evenly): more lines than this are not read.
@@ -118,7 +119,7 @@ fn control(
     let map = charts.join("map_closures.svg");
     plan_map_chart(
         &map,
-        &points(scene, &closed_at),
+        &drawpoint_points(scene, &closed_at),
         "Period of closure (hollow: open at the end)",
         "period",
         MapScale::Sequential,
@@ -155,7 +156,7 @@ fn value(
     let map = charts.join("map_best_hod.svg");
     plan_map_chart(
         &map,
-        &points(scene, &best_hod),
+        &drawpoint_points(scene, &best_hod),
         "Best height of draw",
         "HOD (m)",
         MapScale::Sequential,
@@ -191,18 +192,6 @@ fn value(
     let paths: Vec<PathBuf> = vec![map, curves];
     page.charts(&paths.iter().map(PathBuf::as_path).collect::<Vec<_>>())?;
     Ok(())
-}
-
-fn points(scene: &Scene, values: &[f64]) -> Vec<MapPoint> {
-    let dp = &scene.drawpoints;
-    (0..dp.len())
-        .map(|d| MapPoint {
-            x: dp.x[d],
-            y: dp.y[d],
-            value: values[d],
-            label: dp.name[d].clone(),
-        })
-        .collect()
 }
 
 /// A sum of money to three significant figures with a k/M/G suffix.

@@ -330,17 +330,7 @@ fn of_kind(charts: &[PathBuf], keep: impl Fn(&str) -> bool) -> Vec<&Path> {
 
 /// Draws the plan maps; returns their files.
 fn plan_maps(charts: &Path, scene: &Scene, per: &Figures) -> Result<Vec<PathBuf>, ReportError> {
-    let dp = &scene.drawpoints;
-    let points = |values: &[f64]| -> Vec<MapPoint> {
-        (0..dp.len())
-            .map(|d| MapPoint {
-                x: dp.x[d],
-                y: dp.y[d],
-                value: values[d],
-                label: dp.name[d].clone(),
-            })
-            .collect()
-    };
+    let points = |values: &[f64]| drawpoint_points(scene, values);
     let mut maps = vec![
         ("map_hod", "Height of draw at the end", "HOD (m)", &per.hod),
         (
@@ -366,6 +356,19 @@ fn plan_maps(charts: &Path, scene: &Scene, per: &Figures) -> Result<Vec<PathBuf>
         out.push(path);
     }
     Ok(out)
+}
+
+/// One point of a plan map per drawpoint, with its value in `values` (drawpoint order).
+pub(super) fn drawpoint_points(scene: &Scene, values: &[f64]) -> Vec<MapPoint> {
+    let dp = &scene.drawpoints;
+    (0..dp.len())
+        .map(|d| MapPoint {
+            x: dp.x[d],
+            y: dp.y[d],
+            value: values[d],
+            label: dp.name[d].clone(),
+        })
+        .collect()
 }
 
 /// The sections at each moment, one row of images per drawpoint row.
