@@ -302,6 +302,25 @@ pub(super) fn calibrate_cmd(a: CalibrateArgs) -> Result<ExitCode> {
         report.model_noise,
         report.records_noise
     );
+    for z in &report.diagnosis.zones {
+        let largest = z
+            .shape_t
+            .iter()
+            .filter(|t| t.is_finite())
+            .fold(0.0f64, |m, t| m.max(t.abs()));
+        println!(
+            "zone {} ({} drawpoints): RMSE {:.4}% before, {:.4}% in the fit, {:.4}% held out (skill {:.2}); shape along the draw |t| ≤ {largest:.1} (noise limit {:.1}); autocorrelation {:.2} (noise {:.2})",
+            z.zone,
+            z.drawpoints,
+            z.rmse_before,
+            z.rmse_fit,
+            z.rmse_held_out,
+            z.skill,
+            z.shape_limit,
+            z.autocorrelation,
+            z.autocorrelation_noise
+        );
+    }
     let (ran, reused) = runs.counts();
     println!(
         "{ran} run(s) made, {reused} complete already in {}",

@@ -8,7 +8,7 @@ use caveflow::engine::{Engine, RunOutput};
 use caveflow::model::demo::{self, DemoScale};
 use caveflow::model::scenario::{DrawControl, Strategy};
 use caveflow::model::{Scenario, Scene};
-use caveflow::output::report::draw_control::hod_spread;
+use caveflow::output::report::draw_control::{hod_spread, hod_spread_by_period};
 
 /// The demo panel over its first `periods` months, at 3 m markers (a quick run: these
 /// tests are about the control, not the flow's resolution).
@@ -144,22 +144,29 @@ fn a_drawpoint_closes_when_its_rule_is_met_and_draws_no_more() {
 fn uniform_draw_keeps_neighbours_heights_of_draw_closer() {
     let (scene, mut sc) = demo_scene(10);
     let layout = Layout::new(&scene, None);
-    let gap = |out: &RunOutput| {
+    // The report's uniformity chart, per period; its last point is the end's spread.
+    let gaps = |out: &RunOutput| {
+        let by_period = hod_spread_by_period(&scene, &out.extraction, &layout);
         let mut hod = vec![0.0; scene.drawpoints.len()];
         let ex = &out.extraction;
         for k in 0..ex.drawpoint.len() {
             hod[ex.drawpoint[k] as usize] = ex.hod[k];
         }
-        hod_spread(&scene, &hod, &layout)
+        assert_eq!(by_period.len(), 10);
+        assert_eq!(by_period[9].1, hod_spread(&scene, &hod, &layout));
+        by_period.iter().map(|g| g.1).collect::<Vec<f64>>()
     };
     sc.draw_control = DrawControl {
         max_rate: Some(400.0),
         ..target(3500.0)
     };
-    let free = gap(&run(&scene, &sc));
+    let free = gaps(&run(&scene, &sc));
     sc.draw_control.uniform_tolerance = Some(5.0);
-    let uniform = gap(&run(&scene, &sc));
-    eprintln!("mean |HOD − neighbours' mean|: {free:.2} m by rate, {uniform:.2} m uniform");
+    let uniform = gaps(&run(&scene, &sc));
+    eprintln!(
+        "mean |HOD − neighbours' mean| per period: {free:.2?} m by rate, {uniform:.2?} m uniform"
+    );
+    let (free, uniform) = (free[9], uniform[9]);
     assert!(uniform < 0.8 * free, "uniform {uniform} vs by rate {free}");
 }
 
@@ -184,6 +191,60 @@ fn the_realised_schedule_drawn_as_a_schedule_draws_the_same() {
     assert!(
         bytes(&controlled) == bytes(&replay),
         "the replay's extraction rows differ"
+    );
+}
+
+/// The same round trip as a user makes it, through the files: `caveflow run` of a
+/// controlled scenario writes `schedule_realised.parquet`; the scenario without
+/// `[draw_control]` and with that file as its schedule, run again, writes the same
+/// `extraction.parquet`, byte for byte.
+#[test]
+fn the_realised_schedule_file_run_as_the_schedule_writes_the_same_extraction() {
+    let (scene, mut sc) = demo_scene(4);
+    sc.draw_control = DrawControl {
+        uniform_tolerance: Some(10.0),
+        ..target(3000.0)
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let (ctl, fix) = (dir.path().join("controlled"), dir.path().join("fixed"));
+    caveflow::output::inputs::write_scene(&ctl, &scene, &sc).unwrap();
+    sc.draw_control = DrawControl::default();
+    caveflow::output::inputs::write_scene(&fix, &scene, &sc).unwrap();
+    let run_cli = |scenario: &std::path::Path, out: &std::path::Path| {
+        let r = crate::fixtures::caveflow_out(&[
+            "run",
+            scenario.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    };
+    run_cli(&ctl.join("scenario.toml"), &ctl.join("out"));
+    let report = std::fs::read_to_string(ctl.join("out/report.html")).unwrap();
+    for part in [
+        "Draw control",
+        "Production against target",
+        "Uniformity of the realised draw",
+    ] {
+        assert!(report.contains(part), "the report lacks {part}");
+    }
+    std::fs::copy(
+        ctl.join("out/schedule_realised.parquet"),
+        fix.join("realised.parquet"),
+    )
+    .unwrap();
+    let toml_path = fix.join("scenario.toml");
+    let mut doc: toml::Table = std::fs::read_to_string(&toml_path)
+        .unwrap()
+        .parse()
+        .unwrap();
+    doc["inputs"]["schedule"] = "realised.parquet".into();
+    std::fs::write(&toml_path, doc.to_string()).unwrap();
+    run_cli(&toml_path, &fix.join("out"));
+    let read = |d: &std::path::Path| std::fs::read(d.join("out/extraction.parquet")).unwrap();
+    assert!(
+        read(&ctl) == read(&fix),
+        "the extraction tables of the controlled run and of its realised schedule differ"
     );
 }
 

@@ -128,11 +128,62 @@ pub fn write_profiles(path: &Path, report: &CalibrationReport) -> Result<(), Cal
     Ok(())
 }
 
-/// What limits a result, one sentence each: the model's own noise not below the records'
-/// (the fit cannot resolve them), and each factor whose resolution or lattice part of the
-/// SE exceeds its statistical part.
+/// What limits a result, one sentence each: structure in the residuals (the model does
+/// not explain the records; [`diagnosis`](super::diagnosis)), a fit that predicts held-out
+/// drawpoints no better than the start, the model's own noise not below the records' (the
+/// fit cannot resolve them), and each factor whose resolution or lattice part of the SE
+/// exceeds its statistical part.
 pub fn warnings(report: &CalibrationReport) -> Vec<String> {
     let mut out = Vec::new();
+    let d = &report.diagnosis;
+    let stretch = |s: usize| {
+        format!(
+            "{:.0}–{:.0} t drawn",
+            d.stretches.get(s).copied().unwrap_or(f64::NAN),
+            d.stretches.get(s + 1).copied().unwrap_or(f64::NAN)
+        )
+    };
+    for z in &d.zones {
+        let who = if z.zone == super::diagnosis::ALL {
+            "every drawpoint together".to_string()
+        } else {
+            format!("zone {}", z.zone)
+        };
+        if !z.shaped.is_empty() {
+            let parts: Vec<String> = z
+                .shaped
+                .iter()
+                .map(|&s| {
+                    format!(
+                        "{} ({:+.4}% {}, t {:.1})",
+                        stretch(s),
+                        z.shape[s],
+                        report.grade,
+                        z.shape_t[s]
+                    )
+                })
+                .collect();
+            out.push(format!(
+                "the model does not explain the records of {who}: {} drawpoints share an error along the draw at {} (beyond the |t| of {:.1} that noise alone passes 5% of the time, p = {:.3}): the factors absorb a difference between model and process, and their intervals measure noise only",
+                z.drawpoints,
+                parts.join(", "),
+                z.shape_limit,
+                z.shape_p
+            ));
+        }
+        if z.autocorrelated {
+            out.push(format!(
+                "the model does not explain the records of {who}: the errors run in streaks along each drawpoint's draw (lag-one autocorrelation {:.2} ± {:.2}, where the model's own noise gives {:.2}): the factors' intervals measure noise only",
+                z.autocorrelation, z.autocorrelation_se, z.autocorrelation_noise
+            ));
+        }
+        if z.skill < 0.0 {
+            out.push(format!(
+                "the fit predicts the drawpoints of {who} no better than the start when each is held out of it (RMSE {:.4}% held out, {:.4}% in the fit, {:.4}% before): the fitted factors do not carry to drawpoints they have not seen",
+                z.rmse_held_out, z.rmse_fit, z.rmse_before
+            ));
+        }
+    }
     if !report.resolution_adequate {
         out.push(format!(
             "the model's own noise at this resolution ({:.4}% {}) is not below the records' ({:.4}%): the fit cannot resolve what the records say; calibrate at a finer resolution (resolution.marker_spacing)",

@@ -115,6 +115,16 @@
 //! Every parameter's profile points are reported, so a flat or two-valleyed surface is
 //! seen, not hidden behind one number: a zone's are its rows' RMSE at the coarse grid and
 //! at every run where only its factor differed from a centre (steps 1b and 2).
+//!
+//! # Diagnosis
+//! The standard errors measure noise, and a model that differs from the process alike at
+//! every drawpoint of a zone hides inside its factor. [`diagnosis`] reads the residuals at
+//! θ̂ for what noise does not make, per zone: the skill of the fit on each drawpoint held
+//! out of it (a linearised refit), a shape along the draw that the zone's drawpoints share
+//! (a sign-flip test), and an autocorrelation along each drawpoint's draw beyond the model's
+//! own noise's. Where it finds structure, the report says the model does not explain the
+//! records, naming the zones and the stretches of the draw, and the intervals are not to be
+//! read as the distance to the truth.
 
 use std::collections::BTreeMap;
 
@@ -125,11 +135,13 @@ use crate::engine::EngineError;
 use crate::model::scenario::Calibration;
 
 pub mod command;
+pub mod diagnosis;
 pub mod fit;
 pub mod problem;
 pub mod uncertainty;
 
 pub use command::{write_calibration, Command, Outcome};
+pub use diagnosis::{Diagnosis, ZoneDiagnosis};
 pub use problem::{describe, InProcess, Problem, Runs, Trial};
 
 use fit::First;
@@ -268,6 +280,9 @@ pub struct CalibrationReport {
     /// Whether the fit lowered the overall RMSE. A fit that does not is no calibration:
     /// it is reported, with its profiles, and no `calibrated.toml` is written.
     pub lowered: bool,
+    /// Whether the model explains the records: held-out skill, and structure in the
+    /// residuals at the fitted values (module docs, "Diagnosis").
+    pub diagnosis: Diagnosis,
     /// The fitted calibration.
     #[serde(skip)]
     pub calibration: Calibration,
@@ -379,6 +394,16 @@ pub fn calibrate(
         &check,
         &before,
     );
+    let zone_of: BTreeMap<String, String> = {
+        let names = p.drawpoints.column("drawpoint")?.str()?.clone();
+        let zones = p.drawpoints.column("zone")?.str()?.clone();
+        names
+            .iter()
+            .zip(zones.iter())
+            .filter_map(|(d, z)| Some((d?.to_string(), z?.to_string())))
+            .collect()
+    };
+    let diagnosis = diagnosis::diagnose(after, &before, &check.twins, joint.as_ref(), &zone_of);
     let correlation = check
         .covariance
         .as_ref()
@@ -396,6 +421,7 @@ pub fn calibrate(
         n: after.all.1,
         runs,
         lowered: rmse(after.all) < rmse(before.all),
+        diagnosis,
         calibration: cal,
     })
 }

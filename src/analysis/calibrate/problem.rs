@@ -23,6 +23,8 @@ pub(super) struct Eval {
     pub(super) all: (f64, usize),
     /// e of every matched row.
     pub(super) rows: BTreeMap<(String, i64), f64>,
+    /// The drawpoint's predicted cumulative tonnes at every matched row (t).
+    pub(super) drawn: BTreeMap<(String, i64), f64>,
 }
 
 impl Eval {
@@ -171,13 +173,24 @@ impl Problem<'_> {
             None => (0.0, 0),
         };
         let period = r.rows.column("period")?.cast(&DataType::Int64)?;
-        let rows = strings(&r.rows, "drawpoint")
+        let (mut rows, mut drawn) = (BTreeMap::new(), BTreeMap::new());
+        for (((d, t), e), cum) in strings(&r.rows, "drawpoint")
             .into_iter()
             .zip(period.i64()?.iter())
             .zip(floats(&r.rows, "error"))
-            .filter_map(|((d, t), e)| Some(((d, t?), e)).filter(|_| e.is_finite()))
-            .collect();
-        Ok(Eval { zones, all, rows })
+            .zip(floats(&r.rows, "cum_tonnes"))
+        {
+            if let (Some(t), true) = (t, e.is_finite()) {
+                drawn.insert((d.clone(), t), cum);
+                rows.insert((d, t), e);
+            }
+        }
+        Ok(Eval {
+            zones,
+            all,
+            rows,
+            drawn,
+        })
     }
 
     /// Runs the trials as one batch and reconciles each.

@@ -7,6 +7,7 @@ use std::collections::BTreeMap;
 
 use nalgebra::{DMatrix, DVector};
 
+use super::diagnosis::mean_se;
 use super::fit::{argmin, Joint, Profile};
 use super::problem::{frag_factor, rmse, Eval, Problem, Trial};
 use super::{CalibrateConfig, CalibrateError, Fitted};
@@ -110,14 +111,6 @@ fn profile_fit(prof: &Profile) -> (f64, f64, [f64; 2]) {
     )
 }
 
-/// The standard error of the mean of `v`: its sample standard deviation over √n.
-fn standard_error(v: &[f64]) -> f64 {
-    let n = v.len() as f64;
-    let mean = v.iter().sum::<f64>() / n;
-    let ss: f64 = v.iter().map(|x| (x - mean).powi(2)).sum();
-    (ss / (n - 1.0) / n).sqrt()
-}
-
 /// Twin lattices the fitted values are run on, to measure the markers' sampling noise and
 /// the fit's lean on its lattice (module docs, "Lattice" and "Noise"). One pair is one
 /// draw of a difference: its size is often far below the spread it stands for.
@@ -184,6 +177,8 @@ pub(super) fn correlation(c: &DMatrix<f64>) -> Vec<Vec<f64>> {
 pub(super) struct Check {
     /// The errors of the run at the fitted values.
     pub(super) after: Eval,
+    /// The errors of the same run on each twin lattice.
+    pub(super) twins: Vec<Eval>,
     /// The model's own noise (module docs, "Noise").
     pub(super) model_noise: f64,
     /// The records' noise beside it.
@@ -222,7 +217,7 @@ impl Check {
         tick(finals.len());
         let finer = finals.pop().expect("the finer run");
         let after = finals.remove(0);
-        let twins = &finals;
+        let twins = finals;
         if after.all.1 == 0 {
             return Err(CalibrateError::Input(
                 "no record matched a prediction: check drawpoint names and periods".into(),
@@ -253,7 +248,7 @@ impl Check {
         let lattice = if !lattice_values.is_empty() {
             Some(DVector::from_iterator(
                 lattice_values.len(),
-                lattice_values.iter().map(|v| standard_error(v)),
+                lattice_values.iter().map(|v| mean_se(v).1),
             ))
         } else {
             joint.and_then(|f| {
@@ -273,6 +268,7 @@ impl Check {
         let covariance = joint.and_then(|f| f.covariance(&after));
         Ok(Check {
             after,
+            twins,
             model_noise,
             records_noise,
             shift,

@@ -10,7 +10,7 @@ use super::run::drawpoint_points;
 use super::ReportError;
 use crate::engine::draw_control::Layout;
 use crate::engine::result::RunOutput;
-use crate::engine::result::{BestHod, ControlRecord, ValueTable};
+use crate::engine::result::{BestHod, ControlRecord, Extraction, ValueTable};
 use crate::model::Scene;
 use crate::output::charts::{fmt_mass, line_chart, plan_map_chart, LineSeries, MapScale};
 
@@ -31,6 +31,27 @@ pub fn hod_spread(scene: &Scene, hod: &[f64], layout: &Layout) -> f64 {
     gaps.iter().sum::<f64>() / gaps.len().max(1) as f64
 }
 
+/// [`hod_spread`] at the end of every period of `ext` (a drawpoint's height of draw held
+/// from its last row), in period order.
+pub fn hod_spread_by_period(scene: &Scene, ext: &Extraction, layout: &Layout) -> Vec<(i64, f64)> {
+    let mut order: Vec<usize> = (0..ext.period.len()).collect();
+    order.sort_by_key(|&k| ext.period[k]);
+    let mut hod = vec![0.0; scene.drawpoints.len()];
+    let mut out: Vec<(i64, f64)> = Vec::new();
+    for (n, &k) in order.iter().enumerate() {
+        if ext.hod[k].is_finite() {
+            hod[ext.drawpoint[k] as usize] = ext.hod[k];
+        }
+        let last = order
+            .get(n + 1)
+            .is_none_or(|&j| ext.period[j] != ext.period[k]);
+        if last {
+            out.push((ext.period[k], hod_spread(scene, &hod, layout)));
+        }
+    }
+    out
+}
+
 /// Adds the section (nothing without draw control or economics).
 pub fn section(
     page: &mut Page,
@@ -41,7 +62,7 @@ pub fn section(
 ) -> Result<(), ReportError> {
     if let Some(rec) = &run.control {
         page.heading("Draw control");
-        control(page, charts, scene, rec, hod)?;
+        control(page, charts, scene, rec, &run.extraction, hod)?;
     }
     if let Some((v, b)) = &run.value {
         page.heading("Value and best height of draw");
@@ -55,6 +76,7 @@ fn control(
     charts: &Path,
     scene: &Scene,
     rec: &ControlRecord,
+    ext: &Extraction,
     hod: &[f64],
 ) -> Result<(), ReportError> {
     let p = &rec.production;
@@ -124,7 +146,19 @@ fn control(
         "period",
         MapScale::Sequential,
     )?;
-    page.charts(&[&production, &map])?;
+    let uniformity = charts.join("hod_spread.svg");
+    let spread = hod_spread_by_period(scene, ext, &layout);
+    line_chart(
+        &uniformity,
+        &[LineSeries {
+            name: "mean |HOD − neighbours' mean|".into(),
+            points: spread.iter().map(|&(k, g)| (k as f64, g)).collect(),
+        }],
+        "Uniformity of the realised draw",
+        "period",
+        "m",
+    )?;
+    page.charts(&[&production, &map, &uniformity])?;
     Ok(())
 }
 
