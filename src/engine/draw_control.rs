@@ -7,9 +7,15 @@
 //! shared among the **open** drawpoints: a drawpoint opens once the ground above its brow
 //! has caved (the block model's cave period, as a scheduled drawpoint is drawn) and, where
 //! the drawpoints table gives one, its `open_period` has come (a drawbell opened before
-//! the cave reaches it would draw nothing), and stays open until a closure rule closes it. Each open drawpoint may take at most its rate
-//! limit: `max_rate` × days × the draw-rate curve's share at its height of draw over its
-//! column (the height from its brow to the top of the block model). First every open
+//! the cave reaches it would draw nothing), and stays open until a closure rule closes it.
+//! A drawpoint whose IMZ holds an air gap under ground that has not caved
+//! (`imz::Imz::under_air_gap`) is **held**: a mine does not draw under an air gap (an
+//! air blast), and the drawpoint would give nothing but the void. Once the ground above
+//! caves it is open again, and its next draw closes the gap.
+//!
+//! Each open drawpoint may take at most its rate limit: `max_rate` × days × the draw-rate
+//! curve's share at its height of draw over its column (the height from its brow to the
+//! top of the block model). First every open
 //! drawpoint takes its minimum (`min_rate` × days, within its limit, the target shared
 //! in proportion when it is smaller than the minima); the rest is shared in proportion to
 //! what each can still take (equal shares when no rate limit is set), first among the
@@ -30,6 +36,8 @@
 //! The realised draw is the engine's schedule from then on: crediting, the streams and the
 //! extraction rows read it as they read a fixed schedule, so a controlled run's realised
 //! schedule (`schedule_realised`), run as a fixed schedule, draws the same.
+
+use rayon::prelude::*;
 
 use super::crediting::{self, Tally};
 use super::Engine;
@@ -141,11 +149,15 @@ impl Engine<'_> {
             .map(|d| self.cum[d] / self.hod_density_area[d].max(1e-12))
             .collect();
         let dp = &scene.drawpoints;
+        let held: Vec<bool> = (0..n)
+            .map(|d| self.imzs[d].under_air_gap(bm, period))
+            .collect();
         let open: Vec<bool> = (0..n)
             .map(|d| {
                 rec.closed[d].is_none()
                     && dp.opens_at(d).is_none_or(|o| period >= o)
                     && bm.flowable(self.drawpoint_block[d], period)
+                    && !held[d]
             })
             .collect();
         let limit: Vec<f64> = (0..n)
@@ -184,6 +196,7 @@ impl Engine<'_> {
         pr.tonnes.push(0.0);
         pr.shortfall_tonnes.push(shortfall);
         pr.open.push(open.iter().filter(|&&o| o).count() as u32);
+        pr.held.push(held.iter().filter(|&&h| h).count() as u32);
         pr.closed
             .push(rec.closed.iter().filter(|c| c.is_some()).count() as u32);
         let s = self.schedule.to_mut();
@@ -211,16 +224,20 @@ impl Engine<'_> {
             .and_then(|c| bm.grade_names.iter().position(|g| g == c));
         let row = self.schedule.period(p);
         let graded = shut_col.is_some() || dc.max_dilation.is_some() || dc.best_hod;
-        let mut closing = Vec::new();
-        for (d, &drew) in row.iter().enumerate() {
-            if drew <= 0.0 || rec.closed[d].is_some() {
-                continue;
-            }
-            // What it drew in the period, as known at its end: its grades and waste share
-            // (read only where a rule or a closure needs them).
-            let drawn = || {
+        let hod = |d: usize| self.cum[d] / self.hod_density_area[d].max(1e-12);
+        let reviewed = |d: usize| row[d] > 0.0 && rec.closed[d].is_none();
+        // What each reviewed drawpoint drew in the period, as known at its end: its grades
+        // and waste share (read only where a rule or a closure needs them; the drawpoints
+        // in parallel).
+        let drawn: Vec<Option<(Vec<f64>, f64)>> = (0..row.len())
+            .into_par_iter()
+            .map(|d| {
+                let high = dc.max_hod.is_some_and(|m| hod(d) >= m);
+                if !reviewed(d) || !(graded || high) {
+                    return None;
+                }
                 let stream = &self.streams[d];
-                let (lo, hi) = (self.sched_cum[d], self.sched_cum[d] + drew);
+                let (lo, hi) = (self.sched_cum[d], self.sched_cum[d] + row[d]);
                 let mut t = Tally::new(bm.grades.len(), bm.lithology_names.len());
                 for r in stream.window(lo, hi, crediting::GRADE_MARKERS) {
                     self.contribute(&self.drawn.m, stream.row[r] as usize, &mut t);
@@ -229,11 +246,17 @@ impl Engine<'_> {
                     let grade: Vec<f64> = t.grade.iter().map(|g| g / t.mass).collect();
                     (grade, t.waste / t.mass)
                 })
-            };
-            let hod = self.cum[d] / self.hod_density_area[d].max(1e-12);
+            })
+            .collect();
+        let mut closing = Vec::new();
+        for (d, read) in drawn.into_iter().enumerate() {
+            if !reviewed(d) {
+                continue;
+            }
+            let (drew, hod) = (row[d], hod(d));
             let high = dc.max_hod.is_some_and(|m| hod >= m);
             // No marker drawn: nothing to grade (the height-of-draw limit still closes).
-            let (grade, dilution) = match (graded || high).then(drawn).flatten() {
+            let (grade, dilution) = match read {
                 Some(g) => g,
                 None if high => (vec![f64::NAN; bm.grades.len()], f64::NAN),
                 None => continue,

@@ -533,6 +533,8 @@ pub struct Production {
     pub shortfall_tonnes: Vec<f64>,
     /// Open drawpoints.
     pub open: Vec<u32>,
+    /// Drawpoints held under an air gap (not open).
+    pub held: Vec<u32>,
     /// Drawpoints closed so far.
     pub closed: Vec<u32>,
 }

@@ -64,6 +64,7 @@ pub fn control_batches(
             ("tonnes", f64s(p.tonnes)),
             ("shortfall_tonnes", f64s(p.shortfall_tonnes)),
             ("open", counts(p.open)),
+            ("held", counts(p.held)),
             ("closed", counts(p.closed)),
         ],
         Vec::new(),

@@ -162,6 +162,7 @@ pub const PRODUCTION_TARGET: TableSpec = TableSpec {
         f("tonnes", F64, "t", "Tonnes credited (below planned where a drawpoint could not deliver its share)", true, &[]),
         f("shortfall_tonnes", F64, "t", "Target no open drawpoint could take under its rate limit", true, &[]),
         f("open", I64, "-", "Drawpoints open in the period", true, &[]),
+        f("held", I64, "-", "Drawpoints held in the period because their IMZ holds an air gap under ground not yet caved (not open)", true, &[]),
         f("closed", I64, "-", "Drawpoints closed before the period", true, &[]),
     ],
     extra: None,

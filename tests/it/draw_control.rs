@@ -42,26 +42,40 @@ fn realised(out: &RunOutput, scene: &Scene, p: usize, d: usize) -> f64 {
 /// Each period's plan is min(target, what the open drawpoints may take), and no drawpoint
 /// takes more than its limit: `max_rate` × days × the rate curve at its height of draw
 /// over its column when the period starts (read back from the extraction rows).
+///
+/// A drawpoint whose IMZ held an air gap at the end of the period before, under a block
+/// that has not caved by this period (read from the `imz` and `extraction` tables), is held:
+/// it draws nothing and has no room.
 #[test]
 fn each_period_draws_the_target_within_the_rate_limits() {
-    let (scene, mut sc) = demo_scene(8);
+    let (scene, mut sc) = demo_scene(12);
     sc.draw_control = DrawControl {
         rate_curve: vec![[0.0, 0.25], [0.2, 1.0]],
         max_rate: Some(300.0),
         ..target(4000.0)
     };
+    sc.outputs.imz_every_period = true;
     let out = run(&scene, &sc);
     let rec = out.control.as_ref().unwrap();
     let layout = Layout::new(&scene, None);
     let n = scene.drawpoints.len();
-    let ex = &out.extraction;
-    let mut hod = vec![0.0; n];
-    let (mut limited, mut short_periods) = (0, 0);
+    let (ex, bm) = (&out.extraction, &scene.blocks);
+    let (mut hod, mut air, mut top) = (vec![0.0; n], vec![0.0; n], vec![f64::NAN; n]);
+    let (mut limited, mut short_periods, mut held_all) = (0, 0, 0);
     for p in 0..scene.periods.len() {
-        let days = scene.periods.days[p];
+        let (days, period) = (scene.periods.days[p], scene.periods.id[p]);
         let mut room = 0.0;
+        let mut held = 0;
         for (d, &h) in hod.iter().enumerate() {
             let t = realised(&out, &scene, p, d);
+            // The middle of the disk above the IMZ's top, where its air gap waits.
+            let above = [scene.drawpoints.x[d], scene.drawpoints.y[d], top[d]];
+            let caved = bm.locate(above).is_some_and(|b| bm.flowable(b, period));
+            if air[d] > 0.0 && !caved {
+                assert_eq!(t, 0.0, "period {p}: drawpoint {d} drawn under an air gap");
+                held += 1;
+                continue;
+            }
             let share = h / layout.column[d];
             let limit = 300.0 * days * sc.draw_control.rate_share(share);
             assert!(
@@ -71,6 +85,8 @@ fn each_period_draws_the_target_within_the_rate_limits() {
             room += limit;
             limited += usize::from(t >= limit * (1.0 - 1e-12) && t > 0.0);
         }
+        assert_eq!(rec.production.held[p], held, "period {p}");
+        held_all += held;
         let target = 4000.0 * days;
         let planned: f64 = (0..n).map(|d| realised(&out, &scene, p, d)).sum();
         let want = target.min(room);
@@ -80,11 +96,20 @@ fn each_period_draws_the_target_within_the_rate_limits() {
         );
         assert!((rec.production.shortfall_tonnes[p] - (target - want)).abs() <= 1e-6 * target);
         short_periods += usize::from(room < target);
-        let period = scene.periods.id[p];
         for k in (0..ex.drawpoint.len()).filter(|&k| ex.period[k] == period) {
             hod[ex.drawpoint[k] as usize] = ex.hod[k];
+            air[ex.drawpoint[k] as usize] = ex.air_gap[k];
+        }
+        let imz = &out.imz;
+        for k in (0..imz.drawpoint.len()).filter(|&k| imz.period[k] == period) {
+            let d = imz.drawpoint[k] as usize;
+            top[d] = imz.z_top[k] + 0.5 * (imz.z_top[k] - imz.z_base[k]);
         }
     }
+    assert!(
+        held_all > 0,
+        "no drawpoint was held: the rule is not exercised"
+    );
     // Both sides of the min are exercised: young drawpoints held by the curve, and
     // periods whose target the panel could take.
     assert!(

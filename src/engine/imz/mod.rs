@@ -340,6 +340,17 @@ impl Imz {
         self.geom.z0 + (i as f64 + 0.5) * self.geom.h
     }
 
+    /// Whether the IMZ holds an air gap under ground that has not caved by `period`: its
+    /// void waits above the top disk until the ground there caves, and the IMZ's next draw
+    /// closes it (`Imz::draw`).
+    pub fn under_air_gap(&self, blocks: &crate::model::BlockModel, period: i64) -> bool {
+        let top = [self.geom.x, self.geom.y, self.z_mid(self.disks())];
+        self.air > 0.0
+            && !blocks
+                .locate(top)
+                .is_some_and(|b| blocks.flowable(b, period))
+    }
+
     /// d̄, φ, ρ_s(1 − n1) and ρ_s of disk i: mobilised where the disk holds markers, else
     /// stagnant.
     pub fn props(&self, i: usize) -> (f64, f64, f64) {
