@@ -140,7 +140,9 @@ fn committed_demo_records_are_valid() {
     assert!(r.tonnes.iter().all(|&t| t > 0.0));
     // Over the run the records' tonnes are the credited tonnes: never more than the
     // schedule asked of a drawpoint, and all but a small shortfall of it overall (measured:
-    // 99.6 % overall, 93.9–100 % per drawpoint).
+    // 97.4 % overall, 95.5–100 % per drawpoint but the southeast corner's four, which the
+    // demo puts under ground with no broken material above (`blocked`, then `exhausted`,
+    // `docs::validation`): 74.7–82.3 %).
     let (mut rec_all, mut sched_all) = (0.0, 0.0);
     for d in 0..s.drawpoints.len() {
         let rec: f64 = (0..r.len())
@@ -153,15 +155,17 @@ fn committed_demo_records_are_valid() {
             "{}: {rec} > {sched}",
             s.drawpoints.name[d]
         );
+        let corner =
+            ["D01-06", "D01-07", "D01-08", "D02-08"].contains(&s.drawpoints.name[d].as_str());
         assert!(
-            rec >= 0.9 * sched,
+            rec >= if corner { 0.7 } else { 0.95 } * sched,
             "{}: {rec} vs {sched}",
             s.drawpoints.name[d]
         );
         rec_all += rec;
         sched_all += sched;
     }
-    assert!(rec_all >= 0.99 * sched_all, "{rec_all} vs {sched_all}");
+    assert!(rec_all >= 0.97 * sched_all, "{rec_all} vs {sched_all}");
     let readme = std::fs::read_to_string(data.join("README.md")).unwrap();
     for needle in [
         "synthetic",
