@@ -530,11 +530,11 @@ fn a_panel_drawn_evenly_with_each_mechanism_on_draws_its_schedule_in_markers() {
 
 /// A daily schedule on mine-scale blocks (9 drawpoints 15 m apart on 15 m blocks, 150 t a
 /// day each for 300 days, at the automatic resolution): markers of 96 t cross the opening a
-/// layer of four at a time, so 1212 of the 2700 drawpoint-days draw none. Every day is
+/// layer of four at a time, so 1205 of the 2700 drawpoint-days draw none. Every day is
 /// credited from its drawpoint's stream (`engine::crediting`): every drawpoint-day has a
 /// grade, every day of a flowing drawpoint its 150 t. Under the bounded per-period
 /// correction, 1450 of the 2700 drawpoint-days had no grade and 1702 were short. No day is
-/// short: each drawpoint's markers weigh 0.973–1.024 of its schedule (1.001 in all). While
+/// short: each drawpoint's markers weigh 0.970–1.032 of its schedule (1.000 in all). While
 /// a marker under two IMZs took each one's transfer at its share, the central drawpoint's
 /// markers weighed 0.77 of its schedule (the markers the averaged transfers stranded
 /// between the IMZs' lower disks, `markers::MotionField::step`) and it was short 66 days;
