@@ -13,6 +13,12 @@
 //! air blast), and the drawpoint would give nothing but the void. Once the ground above
 //! caves it is open again, and its next draw closes the gap.
 //!
+//! A drawpoint that runs out of material in a period (`exhausted`: its lowest disks'
+//! fill below `fill::EXHAUSTED_FILL` with no air gap) may take no more, per day, than it
+//! delivered then, until a period's end finds its lowest disks full enough to feed it
+//! again: what it cannot give goes to the others, as a mine's draw control moves a short
+//! drawpoint's tonnes. One that delivered nothing is drawn out, and closes (`exhausted`).
+//!
 //! Each open drawpoint may take at most its rate limit: `max_rate` × days × the draw-rate
 //! curve's share at its height of draw over its column (the height from its brow to the
 //! top of the block model). First every open
@@ -40,11 +46,18 @@
 use rayon::prelude::*;
 
 use super::crediting::{self, Tally};
+use super::fill;
 use super::Engine;
 use crate::model::{Economics, Scene};
 
 /// Why a drawpoint closed.
-pub const CLOSURE_REASONS: [&str; 4] = ["shutoff_grade", "dilution", "hod_limit", "best_hod"];
+pub const CLOSURE_REASONS: [&str; 5] = [
+    "shutoff_grade",
+    "dilution",
+    "hod_limit",
+    "best_hod",
+    "exhausted",
+];
 
 /// What the control derives from the scene once: each drawpoint's column height and
 /// its neighbours.
@@ -161,12 +174,15 @@ impl Engine<'_> {
             })
             .collect();
         let limit: Vec<f64> = (0..n)
-            .map(|d| match dc.max_rate {
-                Some(m) => {
-                    let share = hod[d] / layout.column[d].max(1e-12);
-                    m * days * dc.rate_share(share)
-                }
-                None => f64::INFINITY,
+            .map(|d| {
+                let rate = match dc.max_rate {
+                    Some(m) => {
+                        let share = hod[d] / layout.column[d].max(1e-12);
+                        m * days * dc.rate_share(share)
+                    }
+                    None => f64::INFINITY,
+                };
+                rate.min(rec.running_out[d].map_or(f64::INFINITY, |r| r * days))
             })
             .collect();
         let min = vec![dc.min_rate * days; n];
@@ -217,6 +233,21 @@ impl Engine<'_> {
         let credited: f64 = ex.tonnes[first_row..].iter().sum();
         if let Some(t) = rec.production.tonnes.last_mut() {
             *t = credited;
+        }
+        // A drawpoint running out is held to the rate it delivered, until its lowest disks
+        // can feed it again (`fill`).
+        let days = scene.periods.days[p];
+        let mut drawn_out = Vec::new();
+        for k in first_row..ex.drawpoint.len() {
+            let d = ex.drawpoint[k] as usize;
+            if ex.short_reason[k] == "exhausted" {
+                rec.running_out[d] = Some(ex.tonnes[k] / days);
+                if !(ex.tonnes[k] > 0.0) {
+                    drawn_out.push(d);
+                }
+            } else if ex.fill[k] >= fill::EXHAUSTED_FILL {
+                rec.running_out[d] = None;
+            }
         }
         let shut_col = dc
             .shutoff_column
@@ -284,6 +315,13 @@ impl Engine<'_> {
             if let Some(k) = reason {
                 let g = shut_col.unwrap_or(0);
                 closing.push((d, k, hod, grade.get(g).copied().unwrap_or(f64::NAN)));
+            }
+        }
+        // A drawpoint that ran out and delivered nothing is drawn out: closed.
+        for d in drawn_out {
+            if rec.closed[d].is_none() && closing.iter().all(|c| c.0 != d) {
+                let hod = self.cum[d] / self.hod_density_area[d].max(1e-12);
+                closing.push((d, 4, hod, f64::NAN));
             }
         }
         let period = scene.periods.id[p];

@@ -494,6 +494,9 @@ pub struct ControlRecord {
     pub closed: Vec<Option<usize>>,
     /// Per drawpoint, consecutive periods it drew below the shut-off grade.
     pub low: Vec<usize>,
+    /// Per drawpoint running out of material (`exhausted`), the rate it delivered then,
+    /// t/day: its limit until its lowest disks can feed it again.
+    pub running_out: Vec<Option<f64>>,
     /// The closures, in order.
     pub closures: Closures,
     /// Production against target per period.

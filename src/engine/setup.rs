@@ -72,6 +72,7 @@ impl<'a> Engine<'a> {
         out.control = dc.is_target().then(|| super::result::ControlRecord {
             closed: vec![None; dp.len()],
             low: vec![0; dp.len()],
+            running_out: vec![None; dp.len()],
             ..Default::default()
         });
         out.extraction.grades = vec![Vec::new(); bm.grades.len()];

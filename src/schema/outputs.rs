@@ -143,7 +143,7 @@ pub const CLOSURES: TableSpec = TableSpec {
     fields: &[
         f("drawpoint", Str, "-", "Drawpoint name", true, &[]),
         f("period", I64, "-", "Period in which it closed (its last period of draw)", true, &[]),
-        f("reason", Str, "-", "shutoff_grade | dilution | hod_limit | best_hod", true, &[]),
+        f("reason", Str, "-", "shutoff_grade | dilution | hod_limit | best_hod | exhausted", true, &[]),
         f("cum_tonnes", F64, "t", "Tonnes it drew in all", true, &[]),
         f("hod", F64, "m", "Height of draw at closure", true, &[]),
         f("grade", F64, "grade units", "Grade of what it drew in the closing period, as known then: the shut-off column, else the first grade column", true, &[]),

@@ -4,6 +4,7 @@
 //! schedule run as a fixed schedule drawing the same.
 
 use caveflow::engine::draw_control::Layout;
+use caveflow::engine::fill::EXHAUSTED_FILL;
 use caveflow::engine::{Engine, RunOutput};
 use caveflow::model::demo::{self, DemoScale};
 use caveflow::model::scenario::{DrawControl, Strategy};
@@ -45,10 +46,12 @@ fn realised(out: &RunOutput, scene: &Scene, p: usize, d: usize) -> f64 {
 ///
 /// A drawpoint whose IMZ held an air gap at the end of the period before, under a block
 /// that has not caved by this period (read from the `imz` and `extraction` tables), is held:
-/// it draws nothing and has no room.
+/// it draws nothing and has no room. One that ran out (`exhausted`) may take no more a day
+/// than it delivered then until its fill is back at `EXHAUSTED_FILL`, and one that
+/// delivered nothing is closed.
 #[test]
 fn each_period_draws_the_target_within_the_rate_limits() {
-    let (scene, mut sc) = demo_scene(12);
+    let (scene, mut sc) = demo_scene(24);
     sc.draw_control = DrawControl {
         rate_curve: vec![[0.0, 0.25], [0.2, 1.0]],
         max_rate: Some(300.0),
@@ -61,13 +64,18 @@ fn each_period_draws_the_target_within_the_rate_limits() {
     let n = scene.drawpoints.len();
     let (ex, bm) = (&out.extraction, &scene.blocks);
     let (mut hod, mut air, mut top) = (vec![0.0; n], vec![0.0; n], vec![f64::NAN; n]);
-    let (mut limited, mut short_periods, mut held_all) = (0, 0, 0);
+    let (mut running_out, mut closed) = (vec![None::<f64>; n], vec![false; n]);
+    let (mut limited, mut short_periods, mut held_all, mut capped) = (0, 0, 0, 0);
     for p in 0..scene.periods.len() {
         let (days, period) = (scene.periods.days[p], scene.periods.id[p]);
         let mut room = 0.0;
         let mut held = 0;
         for (d, &h) in hod.iter().enumerate() {
             let t = realised(&out, &scene, p, d);
+            if closed[d] {
+                assert_eq!(t, 0.0, "period {p}: drawpoint {d} drawn after its closure");
+                continue;
+            }
             // The middle of the disk above the IMZ's top, where its air gap waits.
             let above = [scene.drawpoints.x[d], scene.drawpoints.y[d], top[d]];
             let caved = bm.locate(above).is_some_and(|b| bm.flowable(b, period));
@@ -77,7 +85,9 @@ fn each_period_draws_the_target_within_the_rate_limits() {
                 continue;
             }
             let share = h / layout.column[d];
-            let limit = 300.0 * days * sc.draw_control.rate_share(share);
+            let rate = 300.0 * days * sc.draw_control.rate_share(share);
+            let limit = rate.min(running_out[d].map_or(f64::INFINITY, |r| r * days));
+            capped += usize::from(limit < rate);
             assert!(
                 t <= limit * (1.0 + 1e-12),
                 "period {p}, drawpoint {d}: {t} t over its limit {limit}"
@@ -97,8 +107,25 @@ fn each_period_draws_the_target_within_the_rate_limits() {
         assert!((rec.production.shortfall_tonnes[p] - (target - want)).abs() <= 1e-6 * target);
         short_periods += usize::from(room < target);
         for k in (0..ex.drawpoint.len()).filter(|&k| ex.period[k] == period) {
-            hod[ex.drawpoint[k] as usize] = ex.hod[k];
-            air[ex.drawpoint[k] as usize] = ex.air_gap[k];
+            let d = ex.drawpoint[k] as usize;
+            hod[d] = ex.hod[k];
+            air[d] = ex.air_gap[k];
+            if ex.short_reason[k] == "exhausted" {
+                running_out[d] = Some(ex.tonnes[k] / days);
+                if ex.tonnes[k] == 0.0 {
+                    let c = &rec.closures;
+                    let at = c.drawpoint.iter().position(|&e| e as usize == d);
+                    assert!(
+                        at.is_some_and(|i| c.period[i] == period && c.reason[i] == "exhausted"),
+                        "period {p}: drawpoint {d} delivered nothing and did not close"
+                    );
+                }
+            } else if ex.fill[k] >= EXHAUSTED_FILL {
+                running_out[d] = None;
+            }
+        }
+        for (i, &d) in rec.closures.drawpoint.iter().enumerate() {
+            closed[d as usize] |= rec.closures.period[i] == period;
         }
         let imz = &out.imz;
         for k in (0..imz.drawpoint.len()).filter(|&k| imz.period[k] == period) {
@@ -109,6 +136,11 @@ fn each_period_draws_the_target_within_the_rate_limits() {
     assert!(
         held_all > 0,
         "no drawpoint was held: the rule is not exercised"
+    );
+    eprintln!("{held_all} drawpoint-periods held, {capped} held to what they delivered");
+    assert!(
+        capped > 0,
+        "no drawpoint ran out: the rule is not exercised"
     );
     // Both sides of the min are exercised: young drawpoints held by the curve, and
     // periods whose target the panel could take.
