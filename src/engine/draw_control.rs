@@ -21,16 +21,16 @@
 //!
 //! Each open drawpoint may take at most its rate limit: `max_rate` × days × the draw-rate
 //! curve's share at its height of draw over its column (the height from its brow to the
-//! top of the block model). First every open
-//! drawpoint takes its minimum (`min_rate` × days, within its limit, the target shared
-//! in proportion when it is smaller than the minima); the rest is shared in proportion to
-//! what each can still take (equal shares when no rate limit is set), first among the
-//! drawpoints that are not ahead of their neighbours, then among those that are. A
-//! drawpoint is ahead when its height of draw exceeds the mean of its open neighbours'
-//! (drawpoints within `neighbour_radius` in plan) by more than `uniform_tolerance`: it
-//! draws only what the others cannot take, so the heights of draw stay within the
-//! tolerance and neighbouring IMZs keep interacting (summary §5, interactive draw). What
-//! no open drawpoint can take is the period's production shortfall.
+//! top of the block model). First every open drawpoint takes its minimum (`min_rate` ×
+//! days, within its limit, the target shared in proportion when it is smaller than the
+//! minima); the rest is shared in proportion to what each can still take (equal shares
+//! when no rate limit is set), first among the drawpoints that are not ahead of their
+//! neighbours, then among those that are. A drawpoint is ahead when its height of draw
+//! exceeds the mean of its open neighbours' (drawpoints within `neighbour_radius` in plan)
+//! by more than `uniform_tolerance`: it draws only what the others cannot take, so the
+//! heights of draw stay within the tolerance and neighbouring IMZs keep interacting
+//! (summary §5, interactive draw). What no open drawpoint can take is the period's
+//! production shortfall.
 //!
 //! At the end of the period each drawpoint that drew is reviewed against the closure
 //! rules, with what it drew in the period as known then (the markers drawn up to the
