@@ -47,6 +47,7 @@ use rayon::prelude::*;
 
 use super::crediting::{self, Tally};
 use super::fill;
+use super::height_of_draw::hod;
 use super::Engine;
 use crate::model::{Economics, Scene};
 
@@ -159,7 +160,7 @@ impl Engine<'_> {
         let days = scene.periods.days[p];
         let n = scene.drawpoints.len();
         let hod: Vec<f64> = (0..n)
-            .map(|d| self.cum[d] / self.hod_density_area[d].max(1e-12))
+            .map(|d| hod(self.cum[d], self.hod_density_area[d]))
             .collect();
         let dp = &scene.drawpoints;
         let held: Vec<bool> = (0..n)
@@ -255,7 +256,7 @@ impl Engine<'_> {
             .and_then(|c| bm.grade_names.iter().position(|g| g == c));
         let row = self.schedule.period(p);
         let graded = shut_col.is_some() || dc.max_dilation.is_some() || dc.best_hod;
-        let hod = |d: usize| self.cum[d] / self.hod_density_area[d].max(1e-12);
+        let height = |d: usize| hod(self.cum[d], self.hod_density_area[d]);
         let reviewed = |d: usize| row[d] > 0.0 && rec.closed[d].is_none();
         // What each reviewed drawpoint drew in the period, as known at its end: its grades
         // and waste share (read only where a rule or a closure needs them; the drawpoints
@@ -263,7 +264,7 @@ impl Engine<'_> {
         let drawn: Vec<Option<(Vec<f64>, f64)>> = (0..row.len())
             .into_par_iter()
             .map(|d| {
-                let high = dc.max_hod.is_some_and(|m| hod(d) >= m);
+                let high = dc.max_hod.is_some_and(|m| height(d) >= m);
                 if !reviewed(d) || !(graded || high) {
                     return None;
                 }
@@ -284,7 +285,7 @@ impl Engine<'_> {
             if !reviewed(d) {
                 continue;
             }
-            let (drew, hod) = (row[d], hod(d));
+            let (drew, hod) = (row[d], height(d));
             let high = dc.max_hod.is_some_and(|m| hod >= m);
             // No marker drawn: nothing to grade (the height-of-draw limit still closes).
             let (grade, dilution) = match read {
@@ -320,8 +321,7 @@ impl Engine<'_> {
         // A drawpoint that ran out and delivered nothing is drawn out: closed.
         for d in drawn_out {
             if rec.closed[d].is_none() && closing.iter().all(|c| c.0 != d) {
-                let hod = self.cum[d] / self.hod_density_area[d].max(1e-12);
-                closing.push((d, 4, hod, f64::NAN));
+                closing.push((d, 4, height(d), f64::NAN));
             }
         }
         let period = scene.periods.id[p];

@@ -70,6 +70,12 @@ pub(super) fn tributary(scene: &Scene) -> Vec<f64> {
     out
 }
 
+/// The height of draw of `tonnes` credited over a footprint × bulk density of
+/// `density_area` (t per m, [`tributary`]), m.
+pub(super) fn hod(tonnes: f64, density_area: f64) -> f64 {
+    tonnes / density_area.max(1e-12)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -8,6 +8,7 @@ use rayon::prelude::*;
 use super::account::Phase;
 use super::crediting::{self, Tally};
 use super::fill::{self, Fill};
+use super::height_of_draw::hod;
 use super::imz::{ImzGeom, Mobilised};
 use super::markers::Lattice;
 use super::{rilling, stress, Engine, SurfaceTable};
@@ -161,8 +162,7 @@ impl Engine<'_> {
             ex.shortfall_tonnes.push(self.carry[d]);
             ex.cum_tonnes.push(self.cum[d]);
             ex.markers.push(count);
-            ex.hod
-                .push(self.cum[d] / self.hod_density_area[d].max(1e-12));
+            ex.hod.push(hod(self.cum[d], self.hod_density_area[d]));
             ex.air_gap.push(self.imzs[d].air);
             // What was drawn is read from the stream at the end (`read_streams`).
             Tally::new(bm.grades.len(), bm.lithology_names.len())

@@ -11,7 +11,7 @@ use caveflow::engine::{Engine, RunOutput, WarningRule};
 use caveflow::model::synthetic::UniformBox;
 use caveflow::model::{Scenario, Scene};
 
-use crate::fixtures::{marker_ratio, run, scenario};
+use crate::fixtures::{marker_ratio, never_cave_above, run, scenario};
 
 /// Median of the correction factor over the `ok` rows of `periods` that drew markers.
 fn median_correction(out: &RunOutput, periods: &[i64]) -> f64 {
@@ -252,12 +252,7 @@ fn capped_box(height: f64, cap: Option<f64>) -> (UniformBox, Scene) {
     };
     let mut scene = b.scene();
     if let Some(z) = cap {
-        let bm = &mut scene.blocks;
-        for k in 0..bm.len() {
-            if bm.z[k] > z {
-                bm.cave_period[k] = 1000;
-            }
-        }
+        never_cave_above(&mut scene, z);
     }
     (b, scene)
 }

@@ -170,6 +170,16 @@ pub fn tiny() -> Scene {
     .scene()
 }
 
+/// Makes the ground of `scene` above elevation `z` never cave (cave period 1000).
+pub fn never_cave_above(scene: &mut Scene, z: f64) {
+    let bm = &mut scene.blocks;
+    for k in 0..bm.len() {
+        if bm.z[k] > z {
+            bm.cave_period[k] = 1000;
+        }
+    }
+}
+
 /// Uniform Castro box of height `height`, `width` square, an isolated 120 mm drawpoint at
 /// the centre drawing `tonnes` in each of `periods`: the columns the surface-cone and VTK
 /// tests draw through breakthrough.

@@ -10,7 +10,7 @@ use caveflow::engine::{RunOutput, WarningRule};
 use caveflow::model::synthetic::UniformBox;
 use caveflow::model::Scene;
 
-use crate::fixtures::{run, scenario};
+use crate::fixtures::{never_cave_above, run, scenario};
 
 /// Resolution of the drawn-out columns: h = 25 mm, s = 12.5 mm, 0.2 kg increments.
 const S: f64 = 0.0125;
@@ -27,12 +27,7 @@ fn short_column(cap: Option<f64>) -> Scene {
     };
     let mut scene = b.scene();
     if let Some(z) = cap {
-        let bm = &mut scene.blocks;
-        for k in 0..bm.len() {
-            if bm.z[k] > z {
-                bm.cave_period[k] = 1000;
-            }
-        }
+        never_cave_above(&mut scene, z);
     }
     scene
 }

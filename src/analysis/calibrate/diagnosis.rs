@@ -162,8 +162,8 @@ pub(super) fn diagnose(
         .iter()
         .enumerate()
         .map(|(k, (name, dps))| {
-            let rows = |d: &str| series(&after.rows, d);
-            let n = dps.iter().map(|d| rows(d).len()).sum();
+            let rows: Vec<Vec<f64>> = dps.iter().map(|d| series(&after.rows, d)).collect();
+            let n = rows.iter().map(Vec::len).sum();
             let (rmse_before, rmse_fit, rmse_held_out) = skill_rows(dps, &held, before);
             // Shape: each drawpoint's mean residual per stretch.
             let means: Vec<Vec<Option<f64>>> = dps
@@ -182,10 +182,10 @@ pub(super) fn diagnose(
                 .filter(|&s| shape[s].1.abs() >= shape_limit)
                 .collect();
             // Autocorrelation: the residuals' and the noise's.
-            let r1: Vec<f64> = dps.iter().filter_map(|d| lag_one(&rows(d))).collect();
+            let r1: Vec<f64> = rows.iter().filter_map(|e| lag_one(e)).collect();
             let (autocorrelation, autocorrelation_se) = mean_se(&r1);
             let noise = noise_autocorrelation(after, twins, dps);
-            let rmse2 = dps.iter().flat_map(|d| rows(d)).map(|e| e * e).sum::<f64>() / n as f64;
+            let rmse2 = rows.iter().flatten().map(|e| e * e).sum::<f64>() / n as f64;
             let autocorrelation_noise = noise.0 * (noise.1 / rmse2).min(1.0);
             let autocorrelated = r1.len() >= MIN_DRAWPOINTS
                 && autocorrelation - autocorrelation_noise
@@ -224,11 +224,17 @@ fn drawpoints(rows: &Rows) -> Vec<&str> {
     out
 }
 
+/// Drawpoint `d`'s entries of `rows` (keyed by drawpoint and period), in period order.
+fn of<'a, V>(
+    rows: &'a BTreeMap<(String, i64), V>,
+    d: &str,
+) -> std::collections::btree_map::Range<'a, (String, i64), V> {
+    rows.range((d.to_string(), i64::MIN)..=(d.to_string(), i64::MAX))
+}
+
 /// Drawpoint `d`'s values in period order.
 fn series(rows: &Rows, d: &str) -> Vec<f64> {
-    rows.range((d.to_string(), i64::MIN)..=(d.to_string(), i64::MAX))
-        .map(|(_, &e)| e)
-        .collect()
+    of(rows, d).map(|(_, &e)| e).collect()
 }
 
 /// The edges of [`STRETCHES`] stretches with equal shares of `drawn`.
@@ -246,8 +252,7 @@ fn edges(mut drawn: Vec<f64>) -> Vec<f64> {
 /// Drawpoint `d`'s mean residual in each stretch of `edges` (None where it has no row).
 fn stretch_means(rows: &Rows, drawn: &Rows, d: &str, edges: &[f64]) -> Vec<Option<f64>> {
     let mut sum = [(0.0, 0usize); STRETCHES];
-    let range = (d.to_string(), i64::MIN)..=(d.to_string(), i64::MAX);
-    for (key, &e) in rows.range(range) {
+    for (key, &e) in of(rows, d) {
         let Some(&t) = drawn.get(key) else { continue };
         let s = (1..STRETCHES)
             .take_while(|&s| edges.get(s).is_some_and(|&x| t > x))
@@ -330,9 +335,7 @@ fn noise_autocorrelation(after: &Eval, twins: &[Eval], dps: &[&str]) -> (f64, f6
     let (mut ss, mut n) = (0.0, 0usize);
     for twin in twins {
         for d in dps {
-            let diff: Vec<f64> = after
-                .rows
-                .range((d.to_string(), i64::MIN)..=(d.to_string(), i64::MAX))
+            let diff: Vec<f64> = of(&after.rows, d)
                 .filter_map(|(k, e)| twin.rows.get(k).map(|f| f - e))
                 .collect();
             ss += diff.iter().map(|x| x * x).sum::<f64>();
@@ -396,8 +399,7 @@ fn skill_rows(
 ) -> (f64, f64, f64) {
     let (mut b, mut f, mut h, mut n) = (0.0, 0.0, 0.0, 0usize);
     for d in dps {
-        let range = (d.to_string(), i64::MIN)..=(d.to_string(), i64::MAX);
-        for (key, &(fit, out)) in held.range(range) {
+        for (key, &(fit, out)) in of(held, d) {
             let Some(e0) = before.rows.get(key) else {
                 continue;
             };
