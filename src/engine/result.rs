@@ -490,6 +490,9 @@ impl RunOutput {
 pub struct ControlRecord {
     /// The realised tonnes, period by period (drawpoint-major rows, as `Schedule`).
     pub realised: Vec<f64>,
+    /// `draw_control.neighbour_radius` as set (None: the default), so that what reads
+    /// the record finds the control's own neighbours (`draw_control::Layout::new`).
+    pub neighbour_radius: Option<f64>,
     /// Per drawpoint, the index of the period in which it closed.
     pub closed: Vec<Option<usize>>,
     /// Per drawpoint, consecutive periods it drew below the shut-off grade.

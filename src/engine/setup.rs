@@ -73,6 +73,7 @@ impl<'a> Engine<'a> {
             closed: vec![None; dp.len()],
             low: vec![0; dp.len()],
             running_out: vec![None; dp.len()],
+            neighbour_radius: dc.neighbour_radius,
             ..Default::default()
         });
         out.extraction.grades = vec![Vec::new(); bm.grades.len()];

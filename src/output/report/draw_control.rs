@@ -103,7 +103,7 @@ fn control(
             by.join(", ")
         )
     };
-    let layout = Layout::new(scene, None);
+    let layout = Layout::new(scene, rec.neighbour_radius);
     page.para(&format!(
         "The target asked {} over {} periods; the drawpoints drew {} ({:.1}%). In {short} \
          periods the open drawpoints could not take the whole target under their rate limits \
