@@ -25,7 +25,7 @@ use super::{Engine, EngineError, RunOutput};
 use crate::model::{Scenario, Scene};
 
 /// Format version: bump when the state's layout changes.
-const VERSION: u32 = 13;
+const VERSION: u32 = 14;
 
 #[derive(Serialize, Deserialize)]
 struct State {

@@ -431,7 +431,10 @@ impl<'a> Engine<'a> {
             .filter(|m| is_drawing[m.id])
             .map(|imz| {
                 imz.begin_interval();
-                let passes = imz.draw(row[imz.id] / steps as f64, &ground, &params);
+                let mut passes = imz.draw(row[imz.id] / steps as f64, &ground, &params);
+                let refilled = imz.refill(&ground, &params);
+                passes.made += refilled.made;
+                passes.merged += refilled.merged;
                 imz.finish_interval(&ground, &params);
                 markers::prepare(&mut imz.motion, imz.geom.h);
                 imz.drew_at = u;
@@ -496,9 +499,13 @@ impl<'a> Engine<'a> {
             period,
             seed: self.scenario.seed,
             step: u,
+            owed: match self.scenario.mechanisms.fines {
+                true => self.imzs.iter().map(|m| &m.owed[..]).collect(),
+                false => Vec::new(),
+            },
+            settled: Default::default(),
         };
-        let hook = |mk: &Markers, k: usize, st: &mut markers::Step| perc.apply(mk, k, st);
-        let extra: Option<markers::StepHook> = self.scenario.mechanisms.fines.then_some(&hook);
+        let extra: Option<markers::StepHook> = self.scenario.mechanisms.fines.then_some(&perc);
         if let Some(a) = self.account.as_mut() {
             a.charge(Phase::Grids, t.as_mut().unwrap());
             let (tests, hits) = markers::count_candidates(&self.markers, &fields, &rows);
@@ -514,7 +521,11 @@ impl<'a> Engine<'a> {
             let c = (cadence.max_level > 0).then_some((&cadence, u));
             markers::move_rows(&mut self.markers, &fields, extra, &rows, c)
         };
+        let settled = perc.into_settled();
         drop(fields);
+        if self.scenario.mechanisms.fines {
+            self.settle_counterflow(settled);
+        }
         self.out.marker_caps = self.out.marker_caps.merge(caps);
         self.charge(Phase::MarkerPass, &mut t);
         self.geoms = geoms;

@@ -327,6 +327,9 @@ pub struct RunOutput {
     /// The caps of the marker moves, counted over every marker step
     /// (`engine::markers::caps`; `manifest.json`'s `marker_caps`).
     pub marker_caps: super::markers::CapTally,
+    /// What fines percolation moved across the IMZs' disk bases and what the bulk's
+    /// counterflow returned (`engine::fines`; `manifest.json`'s `percolation`).
+    pub counterflow: super::fines::Counterflow,
     /// Resolution used.
     pub resolution: ResolvedResolution,
     /// Stress fields at the chosen periods (empty unless `mechanisms.stress` is on).

@@ -10,6 +10,7 @@ use std::time::{SystemTime, UNIX_EPOCH};
 use serde::Serialize;
 
 use super::{write_atomic, OutputError};
+use crate::engine::fines::Counterflow;
 use crate::engine::markers::MarkerCaps;
 use crate::engine::result::{MassBalance, ResolvedResolution, RunOutput};
 use crate::model::load::InputFile;
@@ -41,6 +42,9 @@ pub struct Manifest {
     /// The caps of the marker moves: per cap, the marker steps it cut and the share of the
     /// moved tonne-metres it dropped (`engine::markers::caps`).
     pub marker_caps: MarkerCaps,
+    /// Fines percolation's volume across the IMZs' disk bases and the bulk's counterflow
+    /// (`engine::fines`; zeros with `mechanisms.fines` off).
+    pub percolation: Counterflow,
     /// Warnings raised during the run.
     pub warnings: Vec<String>,
 }
@@ -68,6 +72,7 @@ impl Manifest {
             wall_time_s,
             mass_balance: run.balance.clone(),
             marker_caps: run.marker_caps.report(),
+            percolation: run.counterflow,
             warnings: run.warnings.iter().map(|w| w.message.clone()).collect(),
         }
     }

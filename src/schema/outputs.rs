@@ -304,6 +304,14 @@ pub const MANIFEST: TableSpec = TableSpec {
             &[],
         ),
         f(
+            "percolation",
+            Str,
+            "m3",
+            "Fines percolation over the run (zeros with mechanisms.fines off): percolated (the fines' volume summed over the IMZ disk bases it crossed), returned (the part the bulk's slowing carried back up across the same bases), owed (the part still to carry back at the end) and left (the volume of the fines that percolated out of an IMZ, passed up that IMZ as void at its next draw)",
+            true,
+            &[],
+        ),
+        f(
             "warnings",
             Str,
             "-",

@@ -60,7 +60,7 @@ fn fused_marker_pass_matches_the_two_pass_path() {
 /// rows it moves those rows the same and leaves the others alone.
 #[test]
 fn active_set_pass_matches_the_pass_over_every_marker() {
-    use caveflow::engine::markers::{move_markers, move_rows, Markers, Step};
+    use caveflow::engine::markers::{move_markers, move_rows, Markers, Step, StepExtra};
     let (scene, sc) = castro_3_periods();
     let mut e = Engine::new(&scene, &sc).unwrap();
     for p in 0..scene.periods.len() {
@@ -86,10 +86,7 @@ fn active_set_pass_matches_the_pass_over_every_marker() {
         s.dz -= s.perc;
     };
     e.with_last_field(|field| {
-        for extra in [
-            None,
-            Some(&hook as &(dyn Fn(&Markers, usize, &mut Step) + Sync)),
-        ] {
+        for extra in [None, Some(&hook as &dyn StepExtra)] {
             let (mut a, mut b) = (e.markers.clone(), e.markers.clone());
             let (mut da, caps_a) = move_markers(&mut a, field, extra);
             let (mut db, caps_b) =

@@ -276,14 +276,14 @@ fn group_stats(scene: &Scene, out: &RunOutput, rows: &[usize]) -> (f64, f64, f64
 /// - Groups on a ring 75 mm from the axis at 0.425 m, one per quadrant (the lattice and the
 ///   IMZ are symmetric under quarter turns, so the four origins are equivalent), the fourth
 ///   of bed material: every group is drawn, the fines earlier than the coarse group and the
-///   finer the earlier. Measured (mean cumulative tonnes when drawn): 1 mm 18.9 kg, 2 mm
-///   21.0 kg, 4 mm 22.7 kg, bed 24.2 kg. We require the order, and the 1 mm fines at least
-///   10 % ahead of the bed (measured 22 %). With fines migration off, the same origins report
+///   finer the earlier. Measured (mean cumulative tonnes when drawn): 1 mm 19.0 kg, 2 mm
+///   21.1 kg, 4 mm 23.3 kg, bed 24.7 kg. We require the order, and the 1 mm fines at least
+///   10 % ahead of the bed (measured 23 %). With fines migration off, the same origins report
 ///   together (within 2 %).
 /// - Groups at 0.225 m, 125 mm from the axis, near the IMZ limit where it curves in towards
 ///   the drawpoint: the fines percolate straight down out of the narrowing IMZ and stall,
 ///   while bed material from the same origin is drawn. Measured after 120 kg: stalled
-///   outside the IMZ 61 % (1 mm), 48 % (2 mm), 16 % (4 mm), 0 % (bed; 79 % drawn). We
+///   outside the IMZ 56 % (1 mm), 48 % (2 mm), 11 % (4 mm), 0 % (bed; 79 % drawn). We
 ///   require more than half of the 1 mm fines stalled, the finer the more, and no bed
 ///   marker stalled.
 #[test]
@@ -432,16 +432,16 @@ fn third(rows: &[PanelPeriod], i: usize, f: impl Fn(&PanelPeriod) -> f64) -> f64
 /// default is 68 t). Both runs have fragmentation on; the second adds fines migration.
 ///
 /// Measured (tonnes-weighted thirds of the schedule, both mechanisms on): reported mean size
-/// 0.2348, 0.2342, 0.2189 m; attrited fraction W of the reported material 0.010, 0.017,
-/// 0.025, and d/d0 0.994, 0.989, 0.984 (so breakage at the assumed constants takes 1.6 % off
+/// 0.2336, 0.2315, 0.2067 m; attrited fraction W of the reported material 0.010, 0.017,
+/// 0.025, and d/d0 0.993, 0.989, 0.983 (so breakage at the assumed constants takes 1.7 % off
 /// the size in the last third; the rest of the fall is the finer 8100 material). With fines
 /// migration the cumulative waste tonnes lead the run without it in every period once waste
-/// reports (25 t against none in month 16, 1 063 t against 460 t in month 18, 27 572 t
-/// against 26 198 t at the end), and the cumulative grade from waste entry is lower in
-/// every period once the lead is a thousandth of the tonnes (by 0.0005–0.0022 % Mo; here
-/// from the month waste enters). The grades are compared from that month on: a smaller
-/// lead cannot move the grade by more than ~0.0002 % Mo, the size of the difference in the
-/// ore the two runs draw.
+/// reports (12 t against none in month 15, 770 t against 12 t in month 17, 43 425 t
+/// against 27 342 t at the end), and the cumulative grade from waste entry is lower in
+/// every period once the lead is a thousandth of the tonnes (by 0.0016–0.0147 % Mo; here
+/// from month 17, two months after the first fines' waste). The grades are compared from
+/// that month on: a smaller lead cannot move the grade by more than ~0.0002 % Mo, the size
+/// of the difference in the ore the two runs draw.
 #[test]
 fn demo_fragment_size_falls_and_fines_bring_waste_and_the_grade_drop_earlier() {
     let (scene, mut sc) = demo_subset(&[0, 1, 8, 9, 16, 17, 24, 25]);
@@ -499,7 +499,7 @@ fn demo_fragment_size_falls_and_fines_bring_waste_and_the_grade_drop_earlier() {
     let lead = (0..tonnes.len())
         .position(|k| waste_on[entry + k] - waste_off[entry + k] >= 1e-3 * tonnes[k])
         .expect("fines never lead by a thousandth of the tonnes");
-    assert!(lead <= 1, "the lead took {lead} months to build");
+    assert!(lead <= 2, "the lead took {lead} months to build");
     for (a, b) in g_off[lead..].iter().zip(&g_on[lead..]) {
         assert!(b < a, "{g_off:?} vs {g_on:?}");
     }

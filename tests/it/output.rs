@@ -325,6 +325,7 @@ fn fake_run(scene: &Scene) -> RunOutput {
             t.add(10.0, &s, &cut);
             t
         },
+        counterflow: Default::default(),
         stress: Vec::new(),
         trace: Default::default(),
         control: None,

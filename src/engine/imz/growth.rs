@@ -71,22 +71,55 @@ impl Imz {
         let r0 = self.geom.radius[0];
         let cycle = 0.0625 * PI * r0 * r0 * self.geom.h;
         let n = ((v0 / cycle).ceil() as usize).max(1);
-        self.cycles(v0 / n as f64, n, g, p, MERGE_TOLERANCE)
+        self.cycles(0, v0 / n as f64, n, g, p, MERGE_TOLERANCE)
     }
 
-    /// Passes `n` cycles of void `v` each up from the drawpoint; returns the disk-cycles
-    /// made (the disks each cycle's void passed through, summed).
+    /// Passes up the void that fines left in the IMZ when they percolated out through a
+    /// disk's underside (`leaked`, `engine::fines`), each disk's from that disk, in cycles
+    /// of at most a sixteenth of its volume, as a draw passes its void from the opening:
+    /// the ground above moves down to fill it, and the IMZ grows by it. Returns the
+    /// disk-cycles made.
+    pub fn refill(&mut self, g: &Ground, p: &ImzParams) -> Passes {
+        let mut passes = Passes::default();
+        for i in 0..self.leaked.len() {
+            let v = std::mem::take(&mut self.leaked[i]);
+            if !(v > 0.0) || i >= self.disks() {
+                continue;
+            }
+            let r = self.geom.radius[i];
+            let cycle = 0.0625 * PI * r * r * self.geom.h;
+            let n = ((v / cycle).ceil() as usize).max(1);
+            let made = self.cycles(i, v / n as f64, n, g, p, MERGE_TOLERANCE);
+            passes.made += made.made;
+            passes.merged += made.merged;
+        }
+        passes
+    }
+
+    /// Passes `n` cycles of void `v` each up from disk `start` (the drawpoint's: 0);
+    /// returns the disk-cycles made (the disks each cycle's void passed through, summed).
     ///
     /// Disk by disk: disk i takes the cycles in their order, each with R_{i−1} as the disk
     /// below was left by that same cycle. Those are all a disk's inputs (its own radius
     /// and state carry over from the cycle before), so this is the same arithmetic as
     /// passing each cycle up through every disk before the next, in another order.
-    fn cycles(&mut self, v: f64, n: usize, g: &Ground, p: &ImzParams, merge: f64) -> Passes {
+    fn cycles(
+        &mut self,
+        start: usize,
+        v: f64,
+        n: usize,
+        g: &Ground,
+        p: &ImzParams,
+        merge: f64,
+    ) -> Passes {
         // Per cycle, the void entering disk i and R_{i−1} after that cycle.
         let mut void = vec![v; n];
-        let mut below = vec![self.r_open; n];
+        let r_below = start
+            .checked_sub(1)
+            .map_or(self.r_open, |i| self.geom.radius[i]);
+        let mut below = vec![r_below; n];
         let (mut made, mut merged) = (0, 0);
-        for i in 0.. {
+        for i in start.. {
             let Some(first) = void.iter().position(|&x| x > 0.0) else {
                 break;
             };
@@ -412,6 +445,19 @@ mod tests {
     /// in `cycles` equal cycles, then `more` in `split` cycles, taking them together where
     /// a disk can when `merge`; returns the IMZ and what the second draw did.
     fn grow_more(v: f64, cycles: usize, more: f64, split: usize, merge: bool) -> (Imz, Passes) {
+        in_castro_ground(|g| {
+            let p = castro_params();
+            let mut imz = Imz::new(0, 0.0, 0.0, 0.0, 0.025, 0.12);
+            imz.cycles(0, v / cycles as f64, cycles, g, &p, MERGE_TOLERANCE);
+            imz.begin_interval();
+            let tolerance = if merge { MERGE_TOLERANCE } else { -1.0 };
+            let passes = imz.cycles(0, more / split as f64, split, g, &p, tolerance);
+            (imz, passes)
+        })
+    }
+
+    /// `f` of the ground of an isolated Castro IMZ (no other IMZ).
+    fn in_castro_ground<T>(f: impl FnOnce(&Ground) -> T) -> T {
         let scene = crate::model::synthetic::UniformBox::castro_isolated().scene();
         let grid = ImzGrid::build(&[], &[], [-0.6, -0.6], [1.2, 1.2], 0.05);
         let g = Ground {
@@ -420,18 +466,47 @@ mod tests {
             geoms: &[],
             grid: &grid,
         };
-        let p = castro_params();
-        let mut imz = Imz::new(0, 0.0, 0.0, 0.0, 0.025, 0.12);
-        imz.cycles(v / cycles as f64, cycles, &g, &p, MERGE_TOLERANCE);
-        imz.begin_interval();
-        let tolerance = if merge { MERGE_TOLERANCE } else { -1.0 };
-        let passes = imz.cycles(more / split as f64, split, &g, &p, tolerance);
-        (imz, passes)
+        f(&g)
     }
 
     /// [`grow_more`]'s first draw alone.
     fn grow(v: f64, cycles: usize) -> Imz {
         grow_more(v, cycles, 0.0, 1, true).0
+    }
+
+    /// The void fines leave in a disk when they percolate out through its underside
+    /// (`Imz::leaked`) is passed up from that disk at the IMZ's next draw (`Imz::refill`):
+    /// the disks below see none of it and keep their radii, every disk from it up passes
+    /// on what it did not absorb, and the rings the disks gained dilate by exactly that
+    /// void.
+    #[test]
+    fn refill_passes_a_disks_leaked_void_up_from_that_disk() {
+        let mut imz = grow(0.004, 160);
+        let before = imz.geom.radius.clone();
+        imz.begin_interval();
+        let (i, v) = (3, 2e-4);
+        imz.leaked = vec![0.0; i + 1];
+        imz.leaked[i] = v;
+        let passes = in_castro_ground(|g| imz.refill(g, &castro_params()));
+        assert!(passes.made > 0);
+        assert!(imz.leaked.iter().all(|&x| x == 0.0));
+        assert_eq!(imz.geom.radius[..i], before[..i]);
+        assert!(imz.motion[..i]
+            .iter()
+            .all(|m| m.dv == 0.0 && m.dv_out == 0.0));
+        assert!((imz.motion[i].dv - v).abs() < 1e-12 * v);
+        for w in imz.motion[i..].windows(2) {
+            assert_eq!(w[0].dv_out, w[1].dv);
+        }
+        assert_eq!(imz.motion.last().unwrap().dv_out, 0.0);
+        let (h, eps) = (imz.geom.h, dilation(0.45 - 0.35, 0.45));
+        let dilated: f64 = (0..imz.disks())
+            .map(|k| {
+                let r0 = before.get(k).copied().unwrap_or(0.0);
+                PI * h * eps * (imz.geom.radius[k].powi(2) - r0 * r0)
+            })
+            .sum();
+        assert!((dilated - v).abs() < 1e-9 * v, "dilated {dilated} vs {v}");
     }
 
     #[test]

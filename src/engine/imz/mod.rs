@@ -261,6 +261,15 @@ pub struct Imz {
     /// subsidence of the free surface that the top disk's markers make.
     #[serde(default)]
     pub vented: f64,
+    /// Per disk, the void that fines left when they percolated out through the disk's
+    /// underside since the IMZ last drew, m³ (`engine::fines`; passed up by
+    /// [`Imz::refill`]).
+    #[serde(default)]
+    pub leaked: Vec<f64>,
+    /// Per disk base, the volume fines percolated across it that the bulk's counterflow
+    /// has not yet carried back, m³ (`engine::fines`).
+    #[serde(default)]
+    pub owed: Vec<f64>,
     /// True once the top could not open a new disk.
     pub blocked: bool,
     /// Per cadence level L ≥ 1 (index L − 1), per disk: the void and starting radius of
@@ -322,6 +331,8 @@ impl Imz {
             reach: vec![f64::NAN],
             air: 0.0,
             vented: 0.0,
+            leaked: Vec::new(),
+            owed: Vec::new(),
             blocked: false,
             windows: Vec::new(),
             drew_at: 0,

@@ -242,9 +242,24 @@ impl Markers {
     }
 }
 
-/// A hook that adds to a marker's step before it is applied (fines percolation): the
-/// markers, the marker's row and its step. Pure per marker, like the step itself.
-pub type StepHook<'a> = &'a (dyn Fn(&Markers, usize, &mut Step) + Sync);
+/// What a mechanism adds to the marker pass before any step is applied (fines percolation).
+pub trait StepExtra: Sync {
+    /// Adds to the step `st` of marker row `k`. Pure per marker, like the step itself.
+    fn step(&self, mk: &Markers, k: usize, st: &mut Step);
+
+    /// Amends the pass's steps once all are known: `steps[j]` is row `rows[j]`'s (row `j`'s
+    /// where `rows` is `None`). Its result must not depend on the rows' order.
+    fn settle(&self, _mk: &Markers, _rows: Option<&[u32]>, _steps: &mut [Step]) {}
+}
+
+impl<F: Fn(&Markers, usize, &mut Step) + Sync> StepExtra for F {
+    fn step(&self, mk: &Markers, k: usize, st: &mut Step) {
+        self(mk, k, st)
+    }
+}
+
+/// A mechanism's part of the marker pass ([`StepExtra`]).
+pub type StepHook<'a> = &'a dyn StepExtra;
 
 /// Moves every marker once (parallel, pure per marker, so the result does not depend on
 /// the number of threads). Returns the rows drawn, in row order, with their drawpoint,
@@ -292,15 +307,16 @@ pub fn move_markers(
                 (a, ta.merge(tb))
             });
     };
-    let steps: Vec<(Step, Cut)> = (0..mk.len())
+    let (mut steps, cuts): (Vec<Step>, Vec<Cut>) = (0..mk.len())
         .into_par_iter()
         .map(|k| {
             let mut cut = Cut::default();
             let mut s = field.step_cut([mk.x[k], mk.y[k], mk.z[k]], mk.id[k], &mut cut);
-            extra(mk, k, &mut s);
+            extra.step(mk, k, &mut s);
             (s, cut)
         })
-        .collect();
+        .unzip();
+    extra.settle(mk, None, &mut steps);
     (
         mk.x.par_iter_mut(),
         mk.y.par_iter_mut(),
@@ -310,7 +326,7 @@ pub fn move_markers(
         &steps,
     )
         .into_par_iter()
-        .for_each(|(x, y, z, g, w, (s, _))| {
+        .for_each(|(x, y, z, g, w, s)| {
             *x += s.dx;
             *y += s.dy;
             *z += s.dz;
@@ -320,8 +336,8 @@ pub fn move_markers(
     mk.percolated
         .par_iter_mut()
         .zip(&steps)
-        .for_each(|(l, s)| *l += s.0.perc);
-    let tally = (&mk.mass, &steps)
+        .for_each(|(l, s)| *l += s.perc);
+    let tally = (&mk.mass, (&steps, &cuts))
         .into_par_iter()
         .fold(CapTally::default, |mut t, (&m, (s, cut))| {
             t.add(m, s, cut);
@@ -331,8 +347,8 @@ pub fn move_markers(
     let drawn = steps
         .iter()
         .enumerate()
-        .filter(|(_, (s, _))| s.drawn_by != u32::MAX)
-        .map(|(k, (s, _))| (k, s.drawn_by))
+        .filter(|(_, s)| s.drawn_by != u32::MAX)
+        .map(|(k, s)| (k, s.drawn_by))
         .collect();
     (drawn, tally)
 }
@@ -363,20 +379,25 @@ pub fn move_rows(
         .iter()
         .map(|c| (c[0] as usize, c[c.len() - 1] as usize + 1))
         .collect();
-    let steps: Vec<(Step, Cut)> = match extra {
-        Some(extra) => rows
-            .par_iter()
-            .map(|&k| {
-                let k = k as usize;
-                let mut cut = Cut::default();
-                let mut s = fields[0].step_cut([mk.x[k], mk.y[k], mk.z[k]], mk.id[k], &mut cut);
-                extra(mk, k, &mut s);
-                (s, cut)
-            })
-            .collect(),
-        None => Vec::new(),
+    let (steps, cuts): (Vec<Step>, Vec<Cut>) = match extra {
+        Some(extra) => {
+            let (mut steps, cuts): (Vec<Step>, Vec<Cut>) = rows
+                .par_iter()
+                .map(|&k| {
+                    let k = k as usize;
+                    let mut cut = Cut::default();
+                    let p = [mk.x[k], mk.y[k], mk.z[k]];
+                    let mut s = fields[0].step_cut(p, mk.id[k], &mut cut);
+                    extra.step(mk, k, &mut s);
+                    (s, cut)
+                })
+                .unzip();
+            extra.settle(mk, Some(rows), &mut steps);
+            (steps, cuts)
+        }
+        None => (Vec::new(), Vec::new()),
     };
-    let (hooked, steps) = (extra.is_some(), &steps[..]);
+    let (hooked, steps, cuts) = (extra.is_some(), &steps[..], &cuts[..]);
     let (ids, mass) = (&mk.id, &mk.mass);
     let firsts: Vec<usize> = (0..chunks.len()).map(|c| c * chunk).collect();
     let drawn: Vec<(Vec<(usize, u32)>, CapTally)> = (
@@ -395,7 +416,7 @@ pub fn move_rows(
             for (n, &k) in rows.iter().enumerate() {
                 let i = k as usize - lo;
                 let (s, cut) = if hooked {
-                    steps[first + n]
+                    (steps[first + n], cuts[first + n])
                 } else {
                     let level = if cadence.is_some() { lv[i] } else { 0 };
                     let mut cut = Cut::default();

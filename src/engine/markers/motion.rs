@@ -58,6 +58,12 @@ pub struct Step {
     pub host: u32,
     /// Percolation distance (downward, ≥ 0) included in `dz`, m (`engine::fines`).
     pub perc: f64,
+    /// The host IMZ's disk bases the percolation crossed inside the IMZ: those of disks
+    /// `perc_planes[0]` to `perc_planes[1] − 1` (`engine::fines`).
+    pub perc_planes: [u16; 2],
+    /// Whether the percolation left the host IMZ, through the underside of disk
+    /// `perc_planes[0] − 1` (`engine::fines`).
+    pub perc_left: bool,
 }
 
 impl MotionField<'_> {
