@@ -11,7 +11,7 @@
 //!   deliver.
 //! - [`resolution`]: the automatic choice of h, marker spacing and draw increment.
 //! - [`fragmentation`]: primary fragment sizes and secondary fragmentation (summary §6.3).
-//! - [`fines`]: fines migration by percolation (summary §7.3).
+//! - [`fines`]: fines migration by percolation (summary §7.3), and the bed's counterflow.
 //! - [`stress`]: the stress logic and interactive-draw flags (summary §5.3), at chosen
 //!   periods when `mechanisms.stress` is on.
 //! - [`stability`]: where the method is valid, degraded (warned) or refused.
@@ -26,11 +26,13 @@
 //! Each period's schedule is drawn in steps that interleave the drawpoints (concurrent
 //! draw is the limit of small steps; successive draw is the order of the periods). A step:
 //! 1. snapshot every IMZ's geometry (so parallel updates read a fixed state);
-//! 2. grow the drawing IMZs in parallel (each passes its void up in cycles);
+//! 2. grow the drawing IMZs in parallel (each passes its void up in cycles, and the void
+//!    fines left in it when they percolated out);
 //! 3. engulf the lattice sites the grown disks now cover (stagnant → moving markers);
 //! 4. one parallel pass over the moving markers whose cadence level is due, summing the
 //!    motion of every IMZ that drew in their window and contains each (superposition),
-//!    plus fines percolation when it is on; markers leaving the lowest disk are drawn.
+//!    plus fines percolation and its counterflow when it is on; markers leaving the
+//!    lowest disk are drawn.
 //!    With secondary fragmentation on, the attrited fractions and sizes of the markers
 //!    that moved are then updated from their accumulated strain and work.
 //!
