@@ -1,5 +1,5 @@
 //! Checkpoints: the engine's state between two periods, so a run killed at any moment
-//! resumes and produces exactly the outputs of an uninterrupted run (issue: no lost work).
+//! resumes and produces exactly the outputs of an uninterrupted run: no work is lost.
 //!
 //! A checkpoint holds everything [`Engine`] changes as it draws: the IMZs, the moving and
 //! drawn markers, the engulfed lattice sites, the mass-balance carries, the trace points
