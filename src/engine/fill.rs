@@ -202,8 +202,7 @@ pub fn fills(
                     }
                     let g = &imzs[which[*j as usize].0].geom;
                     if g.disk_at(p).is_some_and(|(i, ..)| i < volumes.len()) {
-                        let b = mk.block[row] as usize;
-                        let v = mk.mass[row] / (bm.density[b] * (1.0 - bm.n1[b]));
+                        let v = mk.volume_at_n1(row, bm);
                         *sum += (v / volume * FILL_UNITS).round() as i64;
                     }
                 }

@@ -204,12 +204,6 @@ impl Percolation<'_> {
     pub fn into_settled(self) -> Settled {
         self.settled.into_inner().unwrap_or_default()
     }
-
-    /// Volume of marker row `k` in flowing ground (its mass at its block's n1), m³.
-    fn volume(&self, mk: &Markers, k: usize) -> f64 {
-        let (bm, b) = (self.blocks, mk.block[k] as usize);
-        mk.mass[k] / (bm.density[b] * (1.0 - bm.n1[b]))
-    }
 }
 
 impl super::Engine<'_> {
@@ -242,10 +236,10 @@ fn fixed(v: f64) -> i128 {
     (v * UNIT).round() as i128
 }
 
-/// The index of the disk of IMZ `g` at height `z` (negative below its base, the number of
-/// disks or more above its top).
+/// The index of the disk of IMZ `g` at height `z` ([`ImzGeom::height`] rounded down:
+/// negative below its base, the number of disks or more above its top).
 fn level(g: &ImzGeom, z: f64) -> i64 {
-    ((z - g.z0) / g.h).floor() as i64
+    g.height(z).floor() as i64
 }
 
 /// The volume percolation moved over a run, and how much of it the bulk's counterflow
@@ -290,7 +284,7 @@ impl StepExtra for Percolation<'_> {
             if f.is_empty() {
                 f.resize(n as usize, [0, 0, 0]);
             }
-            let v = fixed(self.volume(mk, k));
+            let v = fixed(mk.volume_at_n1(k, self.blocks));
             let from = level(g, mk.z[k]).min(n - 1);
             let to = level(g, mk.z[k] + st.dz + st.perc);
             for plane in (to + 1).max(0)..=from {
@@ -526,7 +520,7 @@ mod tests {
                 s
             })
             .collect();
-        let v = perc.volume(&mk, 0);
+        let v = mk.volume_at_n1(0, &bm);
         let crossing = |steps: &[Step], f: &dyn Fn(usize, &Step) -> f64| -> f64 {
             steps
                 .iter()

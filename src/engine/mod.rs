@@ -434,9 +434,7 @@ impl<'a> Engine<'a> {
             .map(|imz| {
                 imz.begin_interval();
                 let mut passes = imz.draw(row[imz.id] / steps as f64, &ground, &params);
-                let refilled = imz.refill(&ground, &params);
-                passes.made += refilled.made;
-                passes.merged += refilled.merged;
+                passes += imz.refill(&ground, &params);
                 imz.finish_interval(&ground, &params);
                 markers::prepare(&mut imz.motion, imz.geom.h);
                 imz.drew_at = u;

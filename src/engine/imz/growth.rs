@@ -23,11 +23,18 @@ pub struct Passes {
     pub merged: u64,
 }
 
+impl std::ops::AddAssign for Passes {
+    fn add_assign(&mut self, o: Passes) {
+        self.made += o.made;
+        self.merged += o.merged;
+    }
+}
+
 impl std::iter::Sum for Passes {
     fn sum<I: Iterator<Item = Passes>>(iter: I) -> Passes {
-        iter.fold(Passes::default(), |a, b| Passes {
-            made: a.made + b.made,
-            merged: a.merged + b.merged,
+        iter.fold(Passes::default(), |mut a, b| {
+            a += b;
+            a
         })
     }
 }
@@ -89,9 +96,7 @@ impl Imz {
             let r = self.geom.radius[i];
             let cycle = 0.0625 * PI * r * r * self.geom.h;
             let n = ((v / cycle).ceil() as usize).max(1);
-            let made = self.cycles(i, v / n as f64, n, g, p, MERGE_TOLERANCE);
-            passes.made += made.made;
-            passes.merged += made.merged;
+            passes += self.cycles(i, v / n as f64, n, g, p, MERGE_TOLERANCE);
         }
         passes
     }

@@ -175,6 +175,12 @@ impl Markers {
         self.id.len()
     }
 
+    /// The volume marker row `k` fills in flowing ground: its mass at its block's n1, m³.
+    pub fn volume_at_n1(&self, k: usize, bm: &crate::model::BlockModel) -> f64 {
+        let b = self.block[k] as usize;
+        self.mass[k] / (bm.density[b] * (1.0 - bm.n1[b]))
+    }
+
     /// Whether there are none.
     pub fn is_empty(&self) -> bool {
         self.id.is_empty()
